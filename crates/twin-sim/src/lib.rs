@@ -1,0 +1,1 @@
+//! `twin-sim`: the Otter simulator (the truth the twin is held against).

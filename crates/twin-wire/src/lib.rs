@@ -1,0 +1,1 @@
+//! `twin-wire`: the contract (messages, keys) and the log formats.
