@@ -3,11 +3,19 @@
 //! # Layout
 //! - [`geodesy`]: WGS-84 to the local flat-earth frame, angle wrapping.
 //! - [`sample`]: the measurement types the twin consumes (SI units).
+//! - [`model`]: the [`model::Model`] trait every vessel model implements.
+//! - [`models`]: the seed's kinematic model and the extended kinetic twins.
+//! - [`inputs`]: the seed's inputs derived from GNSS (differences, low-pass).
+//! - [`aekf`]: the adaptive extended Kalman filter, generic over the model.
 //!
 //! # Invariants
 //! This crate does no I/O, reads no clock and has no async code: time comes in
 //! with every measurement, and every result is a value. It depends on neither
 //! tokio, zenoh nor serde.
 
+pub mod aekf;
 pub mod geodesy;
+pub mod inputs;
+pub mod model;
+pub mod models;
 pub mod sample;

@@ -1,0 +1,492 @@
+//! The adaptive extended Kalman filter (MODEL.md section 4; Zhang 2018,
+//! Skriver-Helck-Hasan 2019): joint estimation of a vessel's state and of a
+//! loss of effectiveness `theta` on its inputs.
+//!
+//! The filter is generic over state (`N`), measurement (`M`) and fault (`P`)
+//! dimensions with static sizes, takes its model as a [`Model`], and holds no
+//! hidden state: the estimate ([`AekfState`]) goes in by reference and is
+//! replaced only when a step succeeds, so a failed step leaves it exactly as it
+//! was. Every failure is an [`AekfError`], never a panic.
+//!
+//! # The recursion (one step, consuming `y(k+1)` and the input `u(k)`)
+//! Steps 1-13 of MODEL.md section 4, with these deliberate differences, each
+//! documented where it is coded:
+//! - the covariance update uses the Joseph form;
+//! - forgetting is configured as a time constant and `lambda = exp(-dt/tau)`
+//!   is derived per step, so the filter's memory in seconds does not depend on
+//!   the sample rate;
+//! - process noise is a density (per second): `Q_k = Q_c dt`;
+//! - anti-windup: forgetting is applied per fault component and only as fast
+//!   as new information about that component arrives (see [`forgetting_factors`]);
+//!   with no excitation `S` holds instead of growing like `lambda^-k`;
+//! - measurement components may be missing (masked), exactly: a masked
+//!   component has a zero row in `H` and a zero innovation;
+//! - the measurement model may be nonlinear (`H` is its Jacobian at the
+//!   predicted state), and angle innovations are wrapped.
+
+use nalgebra::{Cholesky, SMatrix, SVector};
+
+use crate::geodesy::wrap_pi;
+use crate::model::{Measurement, Model};
+
+/// Optional adaptation of Q and R from the innovations (the seed authors'
+/// code; Akhlaghi, Zhou and Huang 2017).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoiseAdaptation {
+    /// Memory factor `a` per step, in (0, 1): 0.999 in the authors' code.
+    pub factor: f64,
+    /// Adapt the process noise: `Q <- a Q + (1-a) K ytilde ytilde^T K^T`.
+    pub adapt_process_noise: bool,
+    /// Adapt the measurement noise, in the given form.
+    pub measurement_noise_form: Option<MeasurementNoiseForm>,
+}
+
+/// How R is adapted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MeasurementNoiseForm {
+    /// Akhlaghi et al. 2017: `R <- a R + (1-a)(eps eps^T + H P+ H^T)` with the
+    /// post-fit residual `eps = y - h(x+)`. Unbiased: `E[eps eps^T] = R - H P+ H^T`.
+    PostFitResidual,
+    /// The seed authors' code (MODEL.md section 4):
+    /// `R <- a R + (1-a)(ytilde ytilde^T + H P- H^T)` with the prior innovation.
+    /// Since `E[ytilde ytilde^T] = H P- H^T + R`, this converges to
+    /// `R + 2 H P- H^T`: biased upward. Kept to reproduce the seed.
+    AuthorsCode,
+}
+
+/// Tuning of the filter. All fields are in SI units and independent of the
+/// sample interval.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AekfConfig<const N: usize, const M: usize, const P: usize> {
+    /// Process noise density `Q_c` (per second): `Q_k = Q_c dt`.
+    pub process_noise_density: SMatrix<f64, N, N>,
+    /// Measurement noise covariance `R` (per measurement, not per second).
+    pub measurement_noise: SMatrix<f64, M, M>,
+    /// Time constant of the fault estimator's memory, seconds:
+    /// `lambda = exp(-dt / tau)`. The seed's `lambda = 0.995` is `tau = 40 s` at
+    /// `dt = 0.2 s` and `tau = 0.2 s` at `dt = 1 ms`.
+    pub forgetting_time_constant_s: f64,
+    /// Initial fault covariance `S(0)` (the seed: `0.1 I`).
+    pub initial_fault_covariance: SMatrix<f64, P, P>,
+    /// Anti-windup: a fault component forgets at the full rate while the
+    /// information it receives per step is at least this fraction of the
+    /// steady-state rate for what it holds, and proportionally slower below
+    /// (see [`forgetting_factors`]). 0 turns it off and reproduces the seed's
+    /// recursion exactly, wind-up included; 0.1 is a good default.
+    pub anti_windup_ratio: f64,
+    /// A fault component counts as excited while the data of the last memory
+    /// window alone would pin it down to this standard deviation or better.
+    pub excitation_sigma: f64,
+    /// Optional Q/R adaptation.
+    pub noise_adaptation: Option<NoiseAdaptation>,
+}
+
+/// The estimate the filter carries from step to step. Plain data: clone it to
+/// fork a filter, store it to persist a calibration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AekfState<const N: usize, const M: usize, const P: usize> {
+    /// State estimate `xhat(k|k)`.
+    pub x: SVector<f64, N>,
+    /// State covariance `P(k|k)`.
+    pub p: SMatrix<f64, N, N>,
+    /// Sensitivity of the state estimate to the fault estimate, `Upsilon`.
+    pub upsilon: SMatrix<f64, N, P>,
+    /// Fault covariance `S` (the uncertainty of `theta`).
+    pub s: SMatrix<f64, P, P>,
+    /// Fault estimate `thetahat`.
+    pub theta: SVector<f64, P>,
+    /// Current process noise density (adapted if adaptation is on).
+    pub process_noise_density: SMatrix<f64, N, N>,
+    /// Current measurement noise (adapted if adaptation is on).
+    pub measurement_noise: SMatrix<f64, M, M>,
+    /// Information about each fault component gathered within the memory
+    /// window and held while unexcited: drives the anti-windup.
+    pub held_information: SVector<f64, P>,
+    /// Information about each fault component from the last memory window
+    /// (always forgetting): drives the excitation flag.
+    pub recent_information: SVector<f64, P>,
+    /// Steps taken.
+    pub steps: u64,
+}
+
+impl<const N: usize, const M: usize, const P: usize> AekfState<N, M, P> {
+    /// A fresh estimate at `x0` with covariance `p0`, faults `theta0`, and the
+    /// noise and fault covariances of `config`.
+    pub fn new(
+        config: &AekfConfig<N, M, P>,
+        x0: SVector<f64, N>,
+        p0: SMatrix<f64, N, N>,
+        theta0: SVector<f64, P>,
+    ) -> Self {
+        Self {
+            x: x0,
+            p: p0,
+            upsilon: SMatrix::zeros(),
+            s: config.initial_fault_covariance,
+            theta: theta0,
+            process_noise_density: config.process_noise_density,
+            measurement_noise: config.measurement_noise,
+            held_information: SVector::zeros(),
+            recent_information: SVector::zeros(),
+            steps: 0,
+        }
+    }
+
+    /// Standard deviation of each fault estimate, `sqrt(diag S)`.
+    pub fn fault_sigma(&self) -> SVector<f64, P> {
+        self.s.diagonal().map(|v| v.max(0.0).sqrt())
+    }
+
+    /// Whether each fault component is excited: the data of the last memory
+    /// window alone pin it down to `excitation_sigma` or better.
+    pub fn excited(&self, excitation_sigma: f64) -> [bool; P] {
+        let needed = 1.0 / (excitation_sigma * excitation_sigma);
+        std::array::from_fn(|i| self.recent_information[i] >= needed)
+    }
+
+    /// True if every number is finite and the covariances have positive diagonals.
+    pub fn is_sane(&self) -> bool {
+        self.x.iter().all(|v| v.is_finite())
+            && self.p.iter().all(|v| v.is_finite())
+            && self.s.iter().all(|v| v.is_finite())
+            && self.theta.iter().all(|v| v.is_finite())
+            && self.upsilon.iter().all(|v| v.is_finite())
+            && self.p.diagonal().iter().all(|v| *v > 0.0)
+            && self.s.diagonal().iter().all(|v| *v > 0.0)
+    }
+}
+
+/// What one step saw, for consistency checks and residual analysis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepReport<const M: usize, const P: usize> {
+    /// Innovation `ytilde = y - h(xbar)` (angles wrapped, missing components 0).
+    pub innovation: SVector<f64, M>,
+    /// Innovation covariance of the state part, `Sigma = H P- H^T + R`.
+    pub innovation_covariance: SMatrix<f64, M, M>,
+    /// Normalised innovation squared `ytilde^T Sigma^-1 ytilde` over the
+    /// available components.
+    pub nis: f64,
+    /// Number of available measurement components (degrees of freedom of `nis`).
+    pub dof: usize,
+    /// Per-component forgetting factor applied this step (1 = no forgetting).
+    pub forgetting: SVector<f64, P>,
+}
+
+/// Why a step was refused. The estimate is unchanged after any of these.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum AekfError {
+    /// The time step is not a positive finite number of seconds.
+    #[error("time step {dt_s} s is not positive and finite")]
+    InvalidTimeStep {
+        /// The rejected step, seconds.
+        dt_s: f64,
+    },
+    /// A measurement or input value is NaN or infinite.
+    #[error("non-finite value in the {what}")]
+    NonFinite {
+        /// Which quantity held the non-finite value.
+        what: &'static str,
+    },
+    /// A matrix that must be symmetric positive definite is not.
+    #[error("{which} is not positive definite")]
+    NotPositiveDefinite {
+        /// Which matrix failed its Cholesky factorisation.
+        which: &'static str,
+    },
+    /// The step produced a non-finite or non-positive covariance.
+    #[error("the step produced an unusable estimate ({what})")]
+    Diverged {
+        /// What went wrong.
+        what: &'static str,
+    },
+    /// The configuration is unusable.
+    #[error("invalid configuration: {0}")]
+    InvalidConfig(&'static str),
+}
+
+/// The filter: a model and its tuning. Stateless; see [`AekfState`].
+#[derive(Debug, Clone)]
+pub struct Aekf<Mdl, const N: usize, const M: usize, const P: usize> {
+    /// The vessel model.
+    pub model: Mdl,
+    /// The tuning.
+    pub config: AekfConfig<N, M, P>,
+}
+
+impl<Mdl, const N: usize, const M: usize, const P: usize> Aekf<Mdl, N, M, P>
+where
+    Mdl: Model<N, M, P>,
+{
+    /// A filter for `model` with `config`, checked: the time constant must be
+    /// positive, the noise and initial fault covariances positive definite.
+    pub fn new(model: Mdl, config: AekfConfig<N, M, P>) -> Result<Self, AekfError> {
+        if !(config.forgetting_time_constant_s > 0.0) {
+            return Err(AekfError::InvalidConfig(
+                "forgetting_time_constant_s must be positive",
+            ));
+        }
+        if !(config.anti_windup_ratio >= 0.0 && config.anti_windup_ratio <= 1.0) {
+            return Err(AekfError::InvalidConfig(
+                "anti_windup_ratio must be in [0, 1]",
+            ));
+        }
+        if !(config.excitation_sigma > 0.0) {
+            return Err(AekfError::InvalidConfig(
+                "excitation_sigma must be positive",
+            ));
+        }
+        if let Some(a) = config.noise_adaptation
+            && !(a.factor > 0.0 && a.factor < 1.0)
+        {
+            return Err(AekfError::InvalidConfig(
+                "noise adaptation factor must be in (0, 1)",
+            ));
+        }
+        if Cholesky::new(config.measurement_noise).is_none() {
+            return Err(AekfError::NotPositiveDefinite {
+                which: "measurement noise R",
+            });
+        }
+        if Cholesky::new(config.initial_fault_covariance).is_none() {
+            return Err(AekfError::NotPositiveDefinite {
+                which: "initial fault covariance S(0)",
+            });
+        }
+        if config
+            .process_noise_density
+            .diagonal()
+            .iter()
+            .any(|q| *q < 0.0)
+            || (config.process_noise_density - config.process_noise_density.transpose()).amax()
+                > 1e-12
+        {
+            return Err(AekfError::InvalidConfig(
+                "process noise density must be symmetric with a non-negative diagonal",
+            ));
+        }
+        Ok(Self { model, config })
+    }
+
+    /// The per-step forgetting factor for a step of `dt_s` seconds.
+    pub fn lambda(&self, dt_s: f64) -> f64 {
+        (-dt_s / self.config.forgetting_time_constant_s).exp()
+    }
+
+    /// One step: consume the measurement `y` taken `dt_s` after the current
+    /// estimate, with `input` the input that drove the vessel over that
+    /// interval. On success the estimate is replaced; on error it is untouched.
+    pub fn step(
+        &self,
+        state: &mut AekfState<N, M, P>,
+        input: &Mdl::Input,
+        y: &Measurement<M>,
+        dt_s: f64,
+    ) -> Result<StepReport<M, P>, AekfError> {
+        if !(dt_s > 0.0 && dt_s.is_finite()) {
+            return Err(AekfError::InvalidTimeStep { dt_s });
+        }
+        if (0..M).any(|i| y.available[i] && !y.values[i].is_finite()) {
+            return Err(AekfError::NonFinite {
+                what: "measurement",
+            });
+        }
+        let lambda = self.lambda(dt_s);
+        let identity = SMatrix::<f64, N, N>::identity();
+
+        // Steps 1 and 11 (first half): predicted state, F and Psi at xhat(k|k).
+        let tr = self.model.transition(&state.x, input, &state.theta, dt_s);
+        if tr.next.iter().any(|v| !v.is_finite()) {
+            return Err(AekfError::NonFinite {
+                what: "predicted state (check the input)",
+            });
+        }
+        let f = tr.jacobian;
+        let psi = tr.fault_sensitivity;
+        let x_bar = tr.next;
+
+        // Step 2.
+        let q_step = state.process_noise_density * dt_s;
+        let p_prior = f * state.p * f.transpose() + q_step;
+
+        // Measurement model at the predicted state, with missing components masked.
+        let obs = self.model.observe(&x_bar);
+        let mut h = obs.jacobian;
+        let mut r = state.measurement_noise;
+        let angles = self.model.measurement_angles();
+        let mut innovation = SVector::<f64, M>::zeros();
+        for i in 0..M {
+            if y.available[i] {
+                let d = y.values[i] - obs.predicted[i];
+                innovation[i] = if angles[i] { wrap_pi(d) } else { d };
+            } else {
+                h.set_row(i, &nalgebra::SMatrix::<f64, 1, N>::zeros());
+                let keep = r[(i, i)];
+                r.set_row(i, &nalgebra::SMatrix::<f64, 1, M>::zeros());
+                r.set_column(i, &SVector::<f64, M>::zeros());
+                r[(i, i)] = if keep > 0.0 { keep } else { 1.0 };
+            }
+        }
+
+        // Steps 3-5 (Joseph form).
+        let sigma = h * p_prior * h.transpose() + r;
+        let sigma_chol = Cholesky::new(sigma).ok_or(AekfError::NotPositiveDefinite {
+            which: "innovation covariance Sigma",
+        })?;
+        let k = sigma_chol.solve(&(h * p_prior)).transpose();
+        let ikh = identity - k * h;
+        let p_post = ikh * p_prior * ikh.transpose() + k * r * k.transpose();
+        let p_post = (p_post + p_post.transpose()) * 0.5;
+
+        // Steps 6-7.
+        let omega = h * f * state.upsilon + h * psi;
+        let upsilon = ikh * f * state.upsilon + ikh * psi;
+
+        // Forgetting, per fault component (anti-windup), then steps 8-10 in the
+        // equivalent form with the forgotten S_f = D^-1/2 S D^-1/2.
+        let sigma_inv_omega = sigma_chol.solve(&omega);
+        let info_gain = omega.transpose() * sigma_inv_omega;
+        let forgetting = forgetting_factors(
+            lambda,
+            &info_gain.diagonal(),
+            &state.held_information,
+            self.config.anti_windup_ratio,
+        );
+        let mut s_forgot = state.s;
+        for i in 0..P {
+            for j in 0..P {
+                s_forgot[(i, j)] /= (forgetting[i] * forgetting[j]).sqrt();
+            }
+        }
+        let lambda_mat = sigma + omega * s_forgot * omega.transpose();
+        let lambda_chol = Cholesky::new(lambda_mat).ok_or(AekfError::NotPositiveDefinite {
+            which: "fault gain matrix Lambda^-1",
+        })?;
+        let omega_s = omega * s_forgot;
+        let gamma = lambda_chol.solve(&omega_s).transpose();
+        let s_post = s_forgot - gamma * omega_s;
+        let s_post = (s_post + s_post.transpose()) * 0.5;
+
+        // Steps 11-13.
+        let d_theta = gamma * innovation;
+        let theta = state.theta + d_theta;
+        let mut x_post = x_bar + k * innovation + upsilon * d_theta;
+        for (i, is_angle) in self.model.state_angles().iter().enumerate() {
+            if *is_angle {
+                x_post[i] = wrap_pi(x_post[i]);
+            }
+        }
+
+        let nis = innovation.dot(&sigma_chol.solve(&innovation));
+        if !nis.is_finite() {
+            return Err(AekfError::Diverged {
+                what: "innovation too large to represent",
+            });
+        }
+        let held_information =
+            forgetting.component_mul(&state.held_information) + info_gain.diagonal();
+        let recent_information = state.recent_information * lambda + info_gain.diagonal();
+
+        // Optional noise adaptation, for use from the next step.
+        let mut q_density = state.process_noise_density;
+        let mut r_next = state.measurement_noise;
+        if let Some(adapt) = self.config.noise_adaptation {
+            let a = adapt.factor;
+            if adapt.adapt_process_noise {
+                let ki = k * innovation;
+                let q_new = q_step * a + (ki * ki.transpose()) * (1.0 - a);
+                q_density = (q_new + q_new.transpose()) * (0.5 / dt_s);
+            }
+            if let Some(form) = adapt.measurement_noise_form {
+                let (resid, spread) = match form {
+                    MeasurementNoiseForm::PostFitResidual => {
+                        let post = self.model.observe(&x_post).predicted;
+                        let mut eps = SVector::<f64, M>::zeros();
+                        for i in 0..M {
+                            if y.available[i] {
+                                let d = y.values[i] - post[i];
+                                eps[i] = if angles[i] { wrap_pi(d) } else { d };
+                            }
+                        }
+                        (eps, h * p_post * h.transpose())
+                    }
+                    MeasurementNoiseForm::AuthorsCode => (innovation, h * p_prior * h.transpose()),
+                };
+                let sample = resid * resid.transpose() + spread;
+                // Only the available block learns; missing rows keep their value.
+                for i in 0..M {
+                    for j in 0..M {
+                        if y.available[i] && y.available[j] {
+                            r_next[(i, j)] = a * r_next[(i, j)] + (1.0 - a) * sample[(i, j)];
+                        }
+                    }
+                }
+                r_next = (r_next + r_next.transpose()) * 0.5;
+                if Cholesky::new(r_next).is_none() {
+                    r_next = state.measurement_noise;
+                }
+            }
+        }
+
+        let next = AekfState {
+            x: x_post,
+            p: p_post,
+            upsilon,
+            s: s_post,
+            theta,
+            process_noise_density: q_density,
+            measurement_noise: r_next,
+            held_information,
+            recent_information,
+            steps: state.steps + 1,
+        };
+        if !next.is_sane() {
+            return Err(AekfError::Diverged {
+                what: "non-finite value or non-positive variance",
+            });
+        }
+        *state = next;
+        Ok(StepReport {
+            innovation,
+            innovation_covariance: sigma,
+            nis,
+            dof: y.dof(),
+            forgetting,
+        })
+    }
+}
+
+/// Per-component forgetting factors with anti-windup.
+///
+/// The seed forgets every component by `lambda` each step. Where a component
+/// receives no information (zero input) that makes its `S` grow like
+/// `lambda^-k` (wind-up), and the next excitation then throws the estimate
+/// about. Here a component forgets in proportion to the information it
+/// receives, relative to what it holds: with the ratio
+/// `e = gain / ((1 - lambda) held)` (1 under steady excitation) and the
+/// configured `ratio_min`, `lambda_i = 1 - (1 - lambda) min(1, e / ratio_min)`.
+/// At or above `ratio_min` this is the seed's `lambda`; with no information
+/// `lambda_i = 1` and `S` holds; in between, the held information decays only
+/// slowly (linearly, by `gain (1/ratio_min - 1)` per step), so weak excitation
+/// cannot wind `S` up quickly. `ratio_min = 0` disables it.
+pub fn forgetting_factors<const P: usize>(
+    lambda: f64,
+    info_gain: &SVector<f64, P>,
+    held_information: &SVector<f64, P>,
+    ratio_min: f64,
+) -> SVector<f64, P> {
+    SVector::from_fn(|i, _| {
+        if ratio_min <= 0.0 {
+            return lambda;
+        }
+        let gain = info_gain[i].max(0.0);
+        let held = held_information[i];
+        let ratio = if held > 0.0 {
+            gain / ((1.0 - lambda) * held)
+        } else if gain > 0.0 {
+            ratio_min
+        } else {
+            0.0
+        };
+        1.0 - (1.0 - lambda) * (ratio / ratio_min).min(1.0)
+    })
+}

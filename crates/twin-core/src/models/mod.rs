@@ -1,0 +1,4 @@
+//! The vessel models the filter runs: the seed's kinematic model and the
+//! extended kinetic twins.
+
+pub mod kinematic;
