@@ -24,7 +24,11 @@
 //! - the measurement model may be nonlinear (`H` is its Jacobian at the
 //!   predicted state), and angle innovations are wrapped.
 
-use nalgebra::{Cholesky, SMatrix, SVector};
+use nalgebra::{SMatrix, SVector};
+
+use crate::linalg::{
+    cholesky, cholesky_solve, mul, mul_sparse_left, mul_sparse_right, mul_t, sym_mul_t_sparse,
+};
 
 use crate::geodesy::wrap_pi;
 use crate::model::{Measurement, Model};
@@ -220,7 +224,7 @@ where
     /// A filter for `model` with `config`, checked: the time constant must be
     /// positive, the noise and initial fault covariances positive definite.
     pub fn new(model: Mdl, config: AekfConfig<N, M, P>) -> Result<Self, AekfError> {
-        if !(config.forgetting_time_constant_s > 0.0) {
+        if config.forgetting_time_constant_s.is_nan() || config.forgetting_time_constant_s <= 0.0 {
             return Err(AekfError::InvalidConfig(
                 "forgetting_time_constant_s must be positive",
             ));
@@ -230,7 +234,7 @@ where
                 "anti_windup_ratio must be in [0, 1]",
             ));
         }
-        if !(config.excitation_sigma > 0.0) {
+        if config.excitation_sigma.is_nan() || config.excitation_sigma <= 0.0 {
             return Err(AekfError::InvalidConfig(
                 "excitation_sigma must be positive",
             ));
@@ -242,12 +246,12 @@ where
                 "noise adaptation factor must be in (0, 1)",
             ));
         }
-        if Cholesky::new(config.measurement_noise).is_none() {
+        if cholesky(&config.measurement_noise).is_none() {
             return Err(AekfError::NotPositiveDefinite {
                 which: "measurement noise R",
             });
         }
-        if Cholesky::new(config.initial_fault_covariance).is_none() {
+        if cholesky(&config.initial_fault_covariance).is_none() {
             return Err(AekfError::NotPositiveDefinite {
                 which: "initial fault covariance S(0)",
             });
@@ -306,7 +310,10 @@ where
 
         // Step 2.
         let q_step = state.process_noise_density * dt_s;
-        let p_prior = f * state.p * f.transpose() + q_step;
+        let f_pattern = &Mdl::TRANSITION_PATTERN;
+        let h_pattern = &Mdl::OBSERVATION_PATTERN;
+        let p_prior =
+            sym_mul_t_sparse(&mul_sparse_left(&f, f_pattern, &state.p), &f, f_pattern) + q_step;
 
         // Measurement model at the predicted state, with missing components masked.
         let obs = self.model.observe(&x_bar);
@@ -328,55 +335,66 @@ where
         }
 
         // Steps 3-5 (Joseph form).
-        let sigma = h * p_prior * h.transpose() + r;
-        let sigma_chol = Cholesky::new(sigma).ok_or(AekfError::NotPositiveDefinite {
+        let h_p = mul_sparse_left(&h, h_pattern, &p_prior);
+        let sigma = sym_mul_t_sparse(&h_p, &h, h_pattern) + r;
+        let sigma_chol = cholesky(&sigma).ok_or(AekfError::NotPositiveDefinite {
             which: "innovation covariance Sigma",
         })?;
-        let k = sigma_chol.solve(&(h * p_prior)).transpose();
-        let ikh = identity - k * h;
-        let p_post = ikh * p_prior * ikh.transpose() + k * r * k.transpose();
-        let p_post = (p_post + p_post.transpose()) * 0.5;
+        let k = cholesky_solve(&sigma_chol, &h_p).transpose();
+        let ikh = identity - mul_sparse_right(&k, &h, h_pattern);
+        let dense_n = crate::linalg::dense::<N, N>();
+        let dense_m = crate::linalg::dense::<N, M>();
+        // K R K^T: R is diagonal unless adaptation filled it in.
+        let k_r = if is_diagonal(&r) {
+            SMatrix::<f64, N, M>::from_fn(|i, j| k[(i, j)] * r[(j, j)])
+        } else {
+            mul(&k, &r)
+        };
+        let p_post = sym_mul_t_sparse(&mul(&ikh, &p_prior), &ikh, &dense_n)
+            + sym_mul_t_sparse(&k_r, &k, &dense_m);
 
-        // Steps 6-7.
-        let omega = h * f * state.upsilon + h * psi;
-        let upsilon = ikh * f * state.upsilon + ikh * psi;
+        // Steps 6-7, sharing F Upsilon_old + Psi.
+        let f_ups_psi = mul_sparse_left(&f, f_pattern, &state.upsilon) + psi;
+        let omega = mul_sparse_left(&h, h_pattern, &f_ups_psi);
+        let upsilon = mul(&ikh, &f_ups_psi);
 
         // Forgetting, per fault component (anti-windup), then steps 8-10 in the
         // equivalent form with the forgotten S_f = D^-1/2 S D^-1/2.
-        let sigma_inv_omega = sigma_chol.solve(&omega);
-        let info_gain = omega.transpose() * sigma_inv_omega;
+        let sigma_inv_omega = cholesky_solve(&sigma_chol, &omega);
+        let info_gain = mul(&omega.transpose(), &sigma_inv_omega);
         let forgetting = forgetting_factors(
             lambda,
             &info_gain.diagonal(),
             &state.held_information,
             self.config.anti_windup_ratio,
         );
+        let scale: [f64; P] = std::array::from_fn(|i| 1.0 / forgetting[i].sqrt());
         let mut s_forgot = state.s;
         for i in 0..P {
             for j in 0..P {
-                s_forgot[(i, j)] /= (forgetting[i] * forgetting[j]).sqrt();
+                s_forgot[(i, j)] *= scale[i] * scale[j];
             }
         }
-        let lambda_mat = sigma + omega * s_forgot * omega.transpose();
-        let lambda_chol = Cholesky::new(lambda_mat).ok_or(AekfError::NotPositiveDefinite {
+        let omega_s = mul(&omega, &s_forgot);
+        let lambda_mat = sigma + mul_t(&omega_s, &omega);
+        let lambda_chol = cholesky(&lambda_mat).ok_or(AekfError::NotPositiveDefinite {
             which: "fault gain matrix Lambda^-1",
         })?;
-        let omega_s = omega * s_forgot;
-        let gamma = lambda_chol.solve(&omega_s).transpose();
-        let s_post = s_forgot - gamma * omega_s;
+        let gamma = cholesky_solve(&lambda_chol, &omega_s).transpose();
+        let s_post = s_forgot - mul(&gamma, &omega_s);
         let s_post = (s_post + s_post.transpose()) * 0.5;
 
         // Steps 11-13.
-        let d_theta = gamma * innovation;
+        let d_theta = mul(&gamma, &innovation);
         let theta = state.theta + d_theta;
-        let mut x_post = x_bar + k * innovation + upsilon * d_theta;
+        let mut x_post = x_bar + mul(&k, &innovation) + mul(&upsilon, &d_theta);
         for (i, is_angle) in self.model.state_angles().iter().enumerate() {
             if *is_angle {
                 x_post[i] = wrap_pi(x_post[i]);
             }
         }
 
-        let nis = innovation.dot(&sigma_chol.solve(&innovation));
+        let nis = innovation.dot(&cholesky_solve(&sigma_chol, &innovation));
         if !nis.is_finite() {
             return Err(AekfError::Diverged {
                 what: "innovation too large to represent",
@@ -421,7 +439,7 @@ where
                     }
                 }
                 r_next = (r_next + r_next.transpose()) * 0.5;
-                if Cholesky::new(r_next).is_none() {
+                if cholesky(&r_next).is_none() {
                     r_next = state.measurement_noise;
                 }
             }
@@ -453,6 +471,10 @@ where
             forgetting,
         })
     }
+}
+
+fn is_diagonal<const M: usize>(r: &SMatrix<f64, M, M>) -> bool {
+    (0..M).all(|i| (0..M).all(|j| i == j || r[(i, j)] == 0.0))
 }
 
 /// Per-component forgetting factors with anti-windup.

@@ -141,7 +141,23 @@ impl LocalFrame {
 
 /// Wraps an angle to [-pi, pi) ("smallest signed angle", Fossen's `ssa`).
 /// Non-finite input comes back unchanged (NaN stays NaN).
+#[inline]
 pub fn wrap_pi(angle_rad: f64) -> f64 {
+    // Fast path: the filter wraps angles that are at most a turn out of range.
+    if (-PI..PI).contains(&angle_rad) {
+        return angle_rad;
+    }
+    if (PI..3.0 * PI).contains(&angle_rad) {
+        let w = angle_rad - TAU;
+        if w < PI {
+            return w.max(-PI);
+        }
+    } else if (-3.0 * PI..-PI).contains(&angle_rad) {
+        let w = angle_rad + TAU;
+        if w >= -PI {
+            return if w < PI { w } else { -PI };
+        }
+    }
     if !angle_rad.is_finite() {
         return angle_rad;
     }

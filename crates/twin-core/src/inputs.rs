@@ -336,7 +336,7 @@ impl InputDeriver {
             return None;
         };
         let dt = time_s - t0;
-        if !(dt > 0.0) || !sog_mps.is_finite() || !cog_rad.is_finite() {
+        if dt.is_nan() || dt <= 0.0 || !sog_mps.is_finite() || !cog_rad.is_finite() {
             return None;
         }
         self.last = Some((time_s, sog_mps, cog_rad));

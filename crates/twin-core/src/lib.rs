@@ -6,7 +6,11 @@
 //! - [`model`]: the [`model::Model`] trait every vessel model implements.
 //! - [`models`]: the seed's kinematic model and the extended kinetic twins.
 //! - [`inputs`]: the seed's inputs derived from GNSS (differences, low-pass).
+//! - [`otter`]: the Otter's parameters and the seed's thrust split (step 4).
+//! - [`linalg`]: small Cholesky factorisation and solves for the filter.
 //! - [`aekf`]: the adaptive extended Kalman filter, generic over the model.
+//! - [`predict`]: open-loop forecasts with their uncertainty.
+//! - [`decision`]: nominal / suspect / fault per thruster, with hysteresis.
 //!
 //! # Invariants
 //! This crate does no I/O, reads no clock and has no async code: time comes in
@@ -14,8 +18,12 @@
 //! tokio, zenoh nor serde.
 
 pub mod aekf;
+pub mod decision;
 pub mod geodesy;
 pub mod inputs;
+pub mod linalg;
 pub mod model;
 pub mod models;
+pub mod otter;
+pub mod predict;
 pub mod sample;

@@ -17,6 +17,8 @@
 
 use nalgebra::{SMatrix, SVector};
 
+use crate::linalg::{Pattern, dense};
+
 /// What one step of a model predicts, with the derivatives the filter needs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Transition<const N: usize, const P: usize> {
@@ -91,4 +93,12 @@ pub trait Model<const N: usize, const M: usize, const P: usize> {
 
     /// Short names of the state components, with units, for reports.
     fn state_names(&self) -> [&'static str; N];
+
+    /// Entries of the transition Jacobian `F` that may be non-zero. The filter
+    /// skips the others; a model whose `F` is sparse says so here (a wrong
+    /// pattern gives wrong results, which the models' tests check).
+    const TRANSITION_PATTERN: Pattern<N, N> = dense();
+
+    /// Entries of the observation Jacobian `H` that may be non-zero.
+    const OBSERVATION_PATTERN: Pattern<M, N> = dense();
 }

@@ -14,6 +14,7 @@
 use nalgebra::{SMatrix, SVector, Vector2, Vector4};
 
 use crate::geodesy::wrap_pi;
+use crate::linalg::{Pattern, diagonal};
 use crate::model::{Model, Observation, Transition};
 
 /// State `[north_m, east_m, sog_mps, course_rad]`.
@@ -98,6 +99,15 @@ impl Model<4, 4, 2> for KinematicModel {
     fn state_names(&self) -> [&'static str; 4] {
         ["north_m", "east_m", "sog_mps", "course_rad"]
     }
+
+    const TRANSITION_PATTERN: Pattern<4, 4> = [
+        [true, false, true, true],
+        [false, true, true, true],
+        [false, false, true, false],
+        [false, false, false, true],
+    ];
+
+    const OBSERVATION_PATTERN: Pattern<4, 4> = diagonal();
 }
 
 #[cfg(test)]
@@ -126,6 +136,16 @@ mod tests {
                 / (2.0 * eps);
             for i in 0..4 {
                 assert!((d[i] - tr.jacobian[(i, j)]).abs() < 1e-6, "F[{i},{j}]");
+            }
+        }
+        for i in 0..4 {
+            for j in 0..4 {
+                if !KinematicModel::TRANSITION_PATTERN[i][j] {
+                    assert_eq!(tr.jacobian[(i, j)], 0.0, "F[{i},{j}] outside its pattern");
+                }
+                if !KinematicModel::OBSERVATION_PATTERN[i][j] {
+                    assert_eq!(m.observe(&x).jacobian[(i, j)], 0.0);
+                }
             }
         }
         for j in 0..2 {

@@ -1,0 +1,89 @@
+//! Open-loop prediction from a calibrated estimate: the twin's forecast of
+//! where the vessel will be, with the faults frozen at their estimates and
+//! the uncertainty of every predicted point.
+//!
+//! The state and the fault estimate are propagated jointly. The filter's
+//! estimate error has a part independent of the fault error (covariance `P`)
+//! and a part driven by it through `Upsilon` (Zhang 2018), so the joint
+//! covariance at the start is
+//!
+//! ```text
+//! [[P + Upsilon S Upsilon^T, Upsilon S], [S Upsilon^T, S]]
+//! ```
+//!
+//! and each step applies `[[F, Psi], [0, I]]` plus the process noise
+//! `Q_c dt` on the state: the faults are frozen (no noise), but their
+//! uncertainty keeps spreading into the state.
+
+use nalgebra::{SMatrix, SVector};
+
+use crate::aekf::AekfState;
+use crate::model::Model;
+
+/// One predicted point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PredictedPoint<const N: usize> {
+    /// Time of the point, seconds (same clock as the estimate's).
+    pub time_s: f64,
+    /// Predicted state.
+    pub x: SVector<f64, N>,
+    /// Covariance of the predicted state, including the fault uncertainty.
+    pub covariance: SMatrix<f64, N, N>,
+}
+
+impl<const N: usize> PredictedPoint<N> {
+    /// Standard deviation of state component `i`.
+    pub fn sigma(&self, i: usize) -> f64 {
+        self.covariance[(i, i)].max(0.0).sqrt()
+    }
+}
+
+/// Predicts from `state` (taken at `start_time_s`) through the given inputs,
+/// each applied for its `dt_s`, with process noise density `q_density`.
+/// Returns one point per input, at the end of its interval. Stops early at
+/// the first step that produces a non-finite state.
+pub fn predict<Mdl, const N: usize, const M: usize, const P: usize>(
+    model: &Mdl,
+    state: &AekfState<N, M, P>,
+    q_density: &SMatrix<f64, N, N>,
+    start_time_s: f64,
+    inputs: impl IntoIterator<Item = (f64, Mdl::Input)>,
+) -> Vec<PredictedPoint<N>>
+where
+    Mdl: Model<N, M, P>,
+{
+    let mut x = state.x;
+    let theta = state.theta;
+    let p_tt = state.s;
+    let mut p_xt = state.upsilon * state.s;
+    let mut p_xx = state.p + p_xt * state.upsilon.transpose();
+    let mut time_s = start_time_s;
+    let mut out = Vec::new();
+    for (dt_s, input) in inputs {
+        if !(dt_s > 0.0 && dt_s.is_finite()) {
+            break;
+        }
+        let tr = model.transition(&x, &input, &theta, dt_s);
+        if tr.next.iter().any(|v| !v.is_finite()) {
+            break;
+        }
+        let f = tr.jacobian;
+        let psi = tr.fault_sensitivity;
+        let f_pxt = f * p_xt;
+        p_xx = f * p_xx * f.transpose()
+            + f_pxt * psi.transpose()
+            + psi * f_pxt.transpose()
+            + psi * p_tt * psi.transpose()
+            + q_density * dt_s;
+        p_xx = (p_xx + p_xx.transpose()) * 0.5;
+        p_xt = f_pxt + psi * p_tt;
+        x = tr.next;
+        time_s += dt_s;
+        out.push(PredictedPoint {
+            time_s,
+            x,
+            covariance: p_xx,
+        });
+    }
+    out
+}

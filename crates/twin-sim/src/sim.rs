@@ -1,0 +1,440 @@
+//! The simulation loop: integrates the Otter with RK4, runs the autopilot at
+//! its rate, samples the sensors and the truth, and collects everything into
+//! a [`SimRun`].
+//!
+//! Time is driven by a schedule of exact instants (`k / rate` for each of the
+//! control loop, the truth series and every sensor, plus the onsets of losses
+//! and manual commands), so every sample is taken at its true time whatever
+//! the integration step: between two instants the integrator takes equal
+//! steps no longer than `step_s`. Over one step the commanded shaft speeds and
+//! the losses are held; the current and the wind are evaluated at each RK4
+//! stage.
+
+use twin_core::geodesy::{LatLon, NorthEast, course_of, wrap_two_pi};
+use twin_core::sample::{GnssFix, PropellerSpeeds};
+
+use crate::control::{HeadingAutopilot, SpeedController, allocate};
+use crate::guidance::{LineOfSight, WaypointPass};
+use crate::otter::{Actuation, OtterModel, StateVector, Surroundings, idx, rk4_step};
+use crate::scenario::{Drive, Plan, Scenario, ScenarioError};
+use crate::sensors::{
+    BodyMotion, GnssSensor, HeadingSample, HeadingSensor, PropellerSensor, SensorEvent,
+    radps_to_rpm,
+};
+
+/// Two instants closer than this are the same instant, s.
+const SAME_INSTANT_S: f64 = 1e-9;
+
+/// Rate of the truth series when GNSS is off, Hz.
+const DEFAULT_TRUTH_RATE_HZ: f64 = 5.0;
+
+/// The true state of the craft at one instant (body origin: midships on the
+/// centre line).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TruthSample {
+    /// Time, seconds since the Unix epoch.
+    pub time_s: f64,
+    /// Time since the trial's start, s.
+    pub elapsed_s: f64,
+    /// Position of the body origin.
+    pub position: LatLon,
+    /// North of the frame's origin, m.
+    pub north_m: f64,
+    /// East of the frame's origin, m.
+    pub east_m: f64,
+    /// Heading, rad clockwise from north, in [0, 2 pi).
+    pub heading_rad: f64,
+    /// Surge velocity over ground, m/s.
+    pub u_mps: f64,
+    /// Sway velocity over ground, m/s.
+    pub v_mps: f64,
+    /// Yaw rate, rad/s (positive: bow to starboard).
+    pub r_radps: f64,
+    /// Speed over ground of the body origin, m/s.
+    pub sog_mps: f64,
+    /// Course over ground of the body origin, rad in [0, 2 pi).
+    pub cog_rad: f64,
+    /// Surge velocity through the water, m/s.
+    pub u_water_mps: f64,
+    /// Sway velocity through the water, m/s.
+    pub v_water_mps: f64,
+    /// Actual shaft speeds (port, starboard), rad/s.
+    pub shaft_radps: [f64; 2],
+    /// Commanded shaft speeds (port, starboard), rad/s.
+    pub shaft_cmd_radps: [f64; 2],
+    /// Effective thrust of each propeller, `(1 - loss) T`, N.
+    pub thrust_n: [f64; 2],
+    /// Loss of effectiveness of each propeller, 0..1.
+    pub loss: [f64; 2],
+    /// Water current (north, east), m/s.
+    pub current_ned_mps: [f64; 2],
+    /// Cross-track error from the active leg, m, positive to starboard
+    /// (way-point mode only).
+    pub cross_track_m: Option<f64>,
+    /// Index of the way-point the active leg starts from (way-point mode only).
+    pub leg: Option<usize>,
+}
+
+impl TruthSample {
+    /// Actual shaft speeds (port, starboard), rpm.
+    pub fn shaft_rpm(&self) -> [f64; 2] {
+        self.shaft_radps.map(radps_to_rpm)
+    }
+
+    /// Speed through the water, m/s.
+    pub fn speed_through_water_mps(&self) -> f64 {
+        self.u_water_mps.hypot(self.v_water_mps)
+    }
+}
+
+/// Everything one simulated trial produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimRun {
+    /// The scenario's name.
+    pub name: String,
+    /// Unix time of the start, s.
+    pub start_unix_s: f64,
+    /// Origin of the local frame.
+    pub origin: LatLon,
+    /// Sensor outputs in time-stamp order.
+    pub events: Vec<SensorEvent>,
+    /// The true state at the GNSS rate (true sample times, no latency).
+    pub truth: Vec<TruthSample>,
+    /// Way-points reached, in order (way-point mode).
+    pub waypoint_passes: Vec<WaypointPass>,
+}
+
+impl SimRun {
+    /// The GNSS fixes, in stamp order.
+    pub fn gnss_fixes(&self) -> impl Iterator<Item = &GnssFix> {
+        self.events.iter().filter_map(|e| match e {
+            SensorEvent::Gnss(f) => Some(f),
+            _ => None,
+        })
+    }
+
+    /// The heading measurements, in time order.
+    pub fn headings(&self) -> impl Iterator<Item = &HeadingSample> {
+        self.events.iter().filter_map(|e| match e {
+            SensorEvent::Heading(h) => Some(h),
+            _ => None,
+        })
+    }
+
+    /// The measured shaft speeds, in time order.
+    pub fn measured_propellers(&self) -> impl Iterator<Item = &PropellerSpeeds> {
+        self.events.iter().filter_map(|e| match e {
+            SensorEvent::PropellerMeasured(p) => Some(p),
+            _ => None,
+        })
+    }
+
+    /// The commanded shaft speeds, in time order.
+    pub fn commanded_propellers(&self) -> impl Iterator<Item = &PropellerSpeeds> {
+        self.events.iter().filter_map(|e| match e {
+            SensorEvent::PropellerCommanded(p) => Some(p),
+            _ => None,
+        })
+    }
+}
+
+/// Validates the scenario and runs it.
+pub fn simulate(scenario: &Scenario) -> Result<SimRun, ScenarioError> {
+    let plan = scenario.validate()?;
+    Ok(run_plan(&plan))
+}
+
+/// A periodic instant: due at `next * period_s`.
+#[derive(Debug, Clone, Copy)]
+struct Ticker {
+    period_s: f64,
+    next: u64,
+}
+
+impl Ticker {
+    fn new(period_s: f64) -> Self {
+        Self { period_s, next: 0 }
+    }
+
+    fn due_s(&self) -> f64 {
+        self.next as f64 * self.period_s
+    }
+
+    /// True (and advanced) if due at `t_s`.
+    fn fire(&mut self, t_s: f64) -> bool {
+        if self.due_s() <= t_s + SAME_INSTANT_S {
+            self.next += 1;
+            true
+        } else {
+            false
+        }
+    }
+}
+
+/// The autopilot in way-point mode.
+struct Autopilot {
+    los: LineOfSight,
+    heading: HeadingAutopilot,
+    speed: SpeedController,
+    speed_mps: f64,
+    saturated: bool,
+}
+
+/// Runs a validated plan.
+pub fn run_plan(plan: &Plan) -> SimRun {
+    let model = OtterModel::new(plan.vessel.clone());
+    let params = &model.params;
+
+    // Initial state: at speed in still water, shafts turning to hold it.
+    let [north0, east0, psi0, speed0] = plan.initial;
+    let hold_thrust_n = -params.x_u_n_per_mps * speed0 / 2.0;
+    let n0 = params.shaft_speed_for_thrust_radps(hold_thrust_n);
+    let mut x = StateVector::from_column_slice(&[north0, east0, psi0, speed0, 0.0, 0.0, n0, n0]);
+    let mut n_cmd = [n0, n0];
+
+    let mut autopilot = match &plan.drive {
+        Drive::Waypoints {
+            waypoints,
+            speed_mps,
+        } => Some(Autopilot {
+            los: LineOfSight::new(
+                waypoints.clone(),
+                plan.lookahead_m,
+                plan.acceptance_radius_m,
+                plan.ilos_gain,
+            ),
+            heading: HeadingAutopilot::new(plan.tuning, psi0, 0.0),
+            speed: SpeedController::new(plan.tuning.speed_bandwidth_radps),
+            speed_mps: *speed_mps,
+            saturated: false,
+        }),
+        Drive::Manual(_) => None,
+    };
+    let manual_at = |t_s: f64| -> [f64; 2] {
+        match &plan.drive {
+            Drive::Manual(cmds) => cmds
+                .iter()
+                .rev()
+                .find(|(from, _)| *from <= t_s + SAME_INSTANT_S)
+                .map_or([0.0, 0.0], |(_, n)| *n),
+            Drive::Waypoints { .. } => [0.0, 0.0],
+        }
+    };
+
+    let mut breakpoints: Vec<f64> = plan.losses.iter().map(|l| l.onset_s).collect();
+    if let Drive::Manual(cmds) = &plan.drive {
+        breakpoints.extend(cmds.iter().map(|(t, _)| *t));
+    }
+    breakpoints.retain(|t| *t > 0.0 && *t < plan.duration_s);
+    breakpoints.sort_by(f64::total_cmp);
+
+    let mut control_clock = Ticker::new(plan.control_period_s);
+    let truth_period = plan
+        .gnss
+        .map_or(1.0 / DEFAULT_TRUTH_RATE_HZ, |g| g.period_s);
+    let mut truth_clock = Ticker::new(truth_period);
+    let mut gnss = plan
+        .gnss
+        .map(|s| (GnssSensor::new(s, plan.seed), Ticker::new(s.period_s)));
+    let mut heading = plan
+        .heading
+        .map(|s| (HeadingSensor::new(s, plan.seed), Ticker::new(s.period_s)));
+    let mut props = plan
+        .propellers
+        .map(|s| (PropellerSensor::new(s, plan.seed), Ticker::new(s.period_s)));
+
+    let mut events = Vec::new();
+    let mut truth = Vec::new();
+    let mut passes = Vec::new();
+    let start = plan.start_unix_s;
+    let loss_at = |t_s: f64| [plan.losses[0].at(t_s), plan.losses[1].at(t_s)];
+
+    let mut t = 0.0_f64;
+    loop {
+        let body = body_motion(&x);
+
+        if control_clock.fire(t)
+            && let Some(ap) = autopilot.as_mut()
+        {
+            let los = ap.los.update(
+                t,
+                body.north_m,
+                body.east_m,
+                plan.control_period_s,
+                &mut passes,
+            );
+            let h = plan.control_period_s;
+            let yaw_nm = ap.heading.update(
+                los.heading_cmd_rad,
+                body.psi_rad,
+                body.r_radps,
+                h,
+                ap.saturated,
+            );
+            let speed = body.u_mps.hypot(body.v_mps).copysign(body.u_mps);
+            let surge_n = ap.speed.update(ap.speed_mps, speed, h, ap.saturated);
+            let alloc = allocate(params, surge_n, yaw_nm);
+            ap.saturated = alloc.saturated;
+            n_cmd = alloc.n_cmd_radps;
+        }
+        if autopilot.is_none() {
+            // Manual commands change at their own instants, not only at control ticks.
+            n_cmd = manual_at(t).map(|n| params.saturate_shaft_radps(n));
+        }
+
+        if truth_clock.fire(t) {
+            truth.push(truth_sample(
+                plan,
+                &model,
+                &x,
+                t,
+                n_cmd,
+                loss_at(t),
+                autopilot.as_ref().map(|ap| &ap.los),
+            ));
+        }
+        if let Some((sensor, clock)) = gnss.as_mut()
+            && clock.fire(t)
+        {
+            events.push(SensorEvent::Gnss(sensor.sample(
+                t,
+                start,
+                &body,
+                &plan.frame,
+            )));
+        }
+        if let Some((sensor, clock)) = heading.as_mut()
+            && clock.fire(t)
+        {
+            events.push(SensorEvent::Heading(sensor.sample(t, start, body.psi_rad)));
+        }
+        if let Some((sensor, clock)) = props.as_mut()
+            && clock.fire(t)
+        {
+            let shafts = [x[idx::N_PORT], x[idx::N_STB]];
+            events.push(SensorEvent::PropellerMeasured(
+                sensor.sample(t, start, shafts),
+            ));
+            events.push(SensorEvent::PropellerCommanded(PropellerSpeeds {
+                time_s: start + t,
+                port_radps: n_cmd[0],
+                starboard_radps: n_cmd[1],
+            }));
+        }
+
+        if t >= plan.duration_s - SAME_INSTANT_S {
+            break;
+        }
+
+        let mut t_next = plan
+            .duration_s
+            .min(control_clock.due_s())
+            .min(truth_clock.due_s());
+        for due in [
+            gnss.as_ref().map(|(_, c)| c.due_s()),
+            heading.as_ref().map(|(_, c)| c.due_s()),
+            props.as_ref().map(|(_, c)| c.due_s()),
+            breakpoints
+                .iter()
+                .copied()
+                .find(|b| *b > t + SAME_INSTANT_S),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            t_next = t_next.min(due);
+        }
+
+        let steps = (((t_next - t) / plan.step_s) - 1e-9).ceil().max(1.0);
+        let h = (t_next - t) / steps;
+        for k in 0..steps as usize {
+            let t0 = t + k as f64 * h;
+            let act = Actuation {
+                n_cmd_radps: n_cmd,
+                loss: loss_at(t0 + 0.5 * h),
+            };
+            x = rk4_step(
+                |ts, xs| {
+                    let (current, accel) = plan.current.at(ts);
+                    let wind_force = plan
+                        .wind
+                        .map_or([0.0; 3], |w| w.force(xs[idx::PSI], xs[idx::U], xs[idx::V]));
+                    let env = Surroundings {
+                        current_ned_mps: current,
+                        current_accel_ned_mps2: accel,
+                        wind_force,
+                    };
+                    model.derivative(xs, &act, &env)
+                },
+                t0,
+                &x,
+                h,
+            );
+        }
+        t = t_next;
+    }
+
+    events.sort_by(|a, b| a.time_s().total_cmp(&b.time_s()));
+    SimRun {
+        name: plan.name.clone(),
+        start_unix_s: start,
+        origin: plan.frame.origin(),
+        events,
+        truth,
+        waypoint_passes: passes,
+    }
+}
+
+fn body_motion(x: &StateVector) -> BodyMotion {
+    BodyMotion {
+        north_m: x[idx::NORTH],
+        east_m: x[idx::EAST],
+        psi_rad: x[idx::PSI],
+        u_mps: x[idx::U],
+        v_mps: x[idx::V],
+        r_radps: x[idx::R],
+    }
+}
+
+fn truth_sample(
+    plan: &Plan,
+    model: &OtterModel,
+    x: &StateVector,
+    t_s: f64,
+    n_cmd: [f64; 2],
+    loss: [f64; 2],
+    los: Option<&LineOfSight>,
+) -> TruthSample {
+    let body = body_motion(x);
+    let (s, c) = body.psi_rad.sin_cos();
+    let vn = c * body.u_mps - s * body.v_mps;
+    let ve = s * body.u_mps + c * body.v_mps;
+    let (current, _) = plan.current.at(t_s);
+    let nu_c = OtterModel::body_current(body.psi_rad, current);
+    let shafts = [x[idx::N_PORT], x[idx::N_STB]];
+    TruthSample {
+        time_s: plan.start_unix_s + t_s,
+        elapsed_s: t_s,
+        position: plan.frame.to_geodetic(NorthEast {
+            north_m: body.north_m,
+            east_m: body.east_m,
+        }),
+        north_m: body.north_m,
+        east_m: body.east_m,
+        heading_rad: wrap_two_pi(body.psi_rad),
+        u_mps: body.u_mps,
+        v_mps: body.v_mps,
+        r_radps: body.r_radps,
+        sog_mps: vn.hypot(ve),
+        cog_rad: course_of(vn, ve),
+        u_water_mps: body.u_mps - nu_c.x,
+        v_water_mps: body.v_mps - nu_c.y,
+        shaft_radps: shafts,
+        shaft_cmd_radps: n_cmd,
+        thrust_n: model.effective_thrusts_n(shafts, loss),
+        loss,
+        current_ned_mps: current,
+        cross_track_m: los.map(|l| l.cross_track_m(body.north_m, body.east_m)),
+        leg: los.map(LineOfSight::leg),
+    }
+}
