@@ -155,6 +155,10 @@ impl<const N: usize, const M: usize, const P: usize> AekfState<N, M, P> {
             && self.s.iter().all(|v| v.is_finite())
             && self.theta.iter().all(|v| v.is_finite())
             && self.upsilon.iter().all(|v| v.is_finite())
+            && self.held_information.iter().all(|v| v.is_finite())
+            && self.recent_information.iter().all(|v| v.is_finite())
+            && self.process_noise_density.iter().all(|v| v.is_finite())
+            && self.measurement_noise.iter().all(|v| v.is_finite())
             && self.p.diagonal().iter().all(|v| *v > 0.0)
             && self.s.diagonal().iter().all(|v| *v > 0.0)
     }

@@ -11,6 +11,8 @@
 //! - [`aekf`]: the adaptive extended Kalman filter, generic over the model.
 //! - [`predict`]: open-loop forecasts with their uncertainty.
 //! - [`decision`]: nominal / suspect / fault per thruster, with hysteresis.
+//! - [`twin`]: one vessel's twin, fed measurement by measurement (what the
+//!   daemon and `twin analyze` both run).
 //!
 //! # Invariants
 //! This crate does no I/O, reads no clock and has no async code: time comes in
@@ -27,3 +29,4 @@ pub mod models;
 pub mod otter;
 pub mod predict;
 pub mod sample;
+pub mod twin;

@@ -37,6 +37,16 @@ pub struct OtterParams {
     pub min_shaft_speed_radps: f64,
     /// Time constant of the shaft speed response, s.
     pub shaft_time_constant_s: f64,
+    /// Hull (pontoon) length, m.
+    pub length_m: f64,
+    /// Draft, m: the displaced volume of two pontoons with block
+    /// coefficient 0.4 and beam 0.25 m, `(m / rho) / (2 0.4 0.25 L)`.
+    pub draft_m: f64,
+    /// Density of sea water, kg/m^3.
+    pub water_density_kgpm3: f64,
+    /// 2D cross-flow drag coefficient of a pontoon section (Hoerner's curve
+    /// at `B / 2T = 0.25 / 0.39`: about 1.0).
+    pub crossflow_drag_coeff: f64,
 }
 
 impl Default for OtterParams {
@@ -67,6 +77,10 @@ impl Default for OtterParams {
             max_shaft_speed_radps: 103.9,
             min_shaft_speed_radps: -101.7,
             shaft_time_constant_s: 0.1,
+            length_m: 2.0,
+            draft_m: (80.0 / 1025.0) / (2.0 * 0.4 * 0.25 * 2.0),
+            water_density_kgpm3: 1025.0,
+            crossflow_drag_coeff: 1.0,
         }
     }
 }

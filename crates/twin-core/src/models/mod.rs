@@ -2,3 +2,4 @@
 //! extended kinetic twins.
 
 pub mod kinematic;
+pub mod otter_twin;

@@ -1,0 +1,2 @@
+//! `twin`: the offline command-line tool of the USV twin.
+fn main() {}

@@ -1,0 +1,670 @@
+//! The extended twin: the Otter's kinetic model in surge, sway and yaw,
+//! driven by the measured propeller speeds, estimating the loss of each
+//! propeller directly (`theta = [theta_port, theta_starboard]`) and,
+//! optionally, the water current (MODEL.md section 5).
+//!
+//! State `[north_m, east_m, psi_rad, u_mps, v_mps, r_radps, current_north_mps,
+//! current_east_mps]` (the last two only in [`OtterTwin<8>`]); `u`, `v` are the
+//! velocities through the water in the body frame. Measurement `[north_m,
+//! east_m, sog_mps, cog_rad, heading_rad]` (any may be missing). Input: the two
+//! shaft speeds.
+//!
+//! ```text
+//! eta'  = R(psi) [u, v] + c,   psi' = r,   c' = 0 (+ noise)
+//! M nu' = tau(n, theta) - C(nu) nu + [X_u u, Y_v v + Y_cf, N_r (1 + 10|r|) r + N_cf]
+//! tau   = [(1-th_p) T_p + (1-th_s) T_s, 0, b ((1-th_p) T_p - (1-th_s) T_s)],  T = k n|n|
+//! C(nu) nu = [-m x_g r^2 - (m + a22) v r, (m + a11) u r, m x_g u r + (a22 - a11) u v]
+//! ```
+//!
+//! Writing the kinetics in the velocity through the water is exact for a
+//! constant, irrotational current (Fossen 2021, property 10.1). The cross-flow
+//! drag `Y_cf, N_cf = -1/2 rho T C_D int [1, x] |v + x r| (v + x r) dx` over the
+//! hull is integrated exactly (the integrand is a piecewise polynomial; see
+//! [`crossflow`]).
+//!
+//! One filter step integrates the state with classical Runge-Kutta (4th
+//! order) in sub-steps of at most [`MAX_SUBSTEP_S`] and a quarter of the
+//! fastest (yaw) time constant over the step (from the yaw rate at its start
+//! and an Euler guess at its end); the Jacobians are the
+//! expansion `I + h A + h^2 A^2 / 2` of `exp(h A)` with `A` taken at the
+//! sub-step's midpoint (and the matching fault sensitivity), chained over the
+//! sub-steps. The state must be accurate (the
+//! fault estimate settles where the innovations average zero); the
+//! Jacobians only steer the gains.
+
+use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
+
+use crate::geodesy::wrap_pi;
+use crate::model::{Model, Observation, Transition};
+use crate::otter::OtterParams;
+
+/// Longest integration sub-step, seconds.
+pub const MAX_SUBSTEP_S: f64 = 0.2;
+
+/// The twin's input: the two shaft speeds over the step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ShaftSpeeds {
+    /// Port shaft speed, rad/s.
+    pub port_radps: f64,
+    /// Starboard shaft speed, rad/s.
+    pub starboard_radps: f64,
+}
+
+/// Index of each component in the 8-state vector (the 6-state twin is its
+/// first six components).
+pub mod idx {
+    /// North position, m.
+    pub const NORTH: usize = 0;
+    /// East position, m.
+    pub const EAST: usize = 1;
+    /// Heading, rad.
+    pub const PSI: usize = 2;
+    /// Surge velocity through the water, m/s.
+    pub const U: usize = 3;
+    /// Sway velocity through the water, m/s.
+    pub const V: usize = 4;
+    /// Yaw rate, rad/s.
+    pub const R: usize = 5;
+    /// Water current, north component, m/s.
+    pub const CURRENT_NORTH: usize = 6;
+    /// Water current, east component, m/s.
+    pub const CURRENT_EAST: usize = 7;
+}
+
+/// Index of each measurement component.
+pub mod meas {
+    /// North position, m.
+    pub const NORTH: usize = 0;
+    /// East position, m.
+    pub const EAST: usize = 1;
+    /// Speed over ground, m/s.
+    pub const SOG: usize = 2;
+    /// Course over ground, rad.
+    pub const COG: usize = 3;
+    /// Heading, rad.
+    pub const HEADING: usize = 4;
+}
+
+/// The Otter's kinetic twin with `N = 6` (no current) or `N = 8` states.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OtterTwin<const N: usize> {
+    /// The vessel's parameters.
+    pub params: OtterParams,
+    /// `M^-1`, computed once.
+    mass_inverse: Matrix3<f64>,
+}
+
+impl<const N: usize> OtterTwin<N> {
+    /// The twin of a vessel with `params`.
+    pub fn new(params: OtterParams) -> Self {
+        let mass_inverse = params
+            .mass_matrix
+            .try_inverse()
+            .unwrap_or_else(Matrix3::identity);
+        Self {
+            params,
+            mass_inverse,
+        }
+    }
+}
+
+impl<const N: usize> Default for OtterTwin<N> {
+    fn default() -> Self {
+        Self::new(OtterParams::default())
+    }
+}
+
+/// Exact integrals of the cross-flow drag over the hull.
+pub mod crossflow {
+    /// `int_{-L/2}^{L/2} x^k |w| w dx` for `k = 0, 1` and
+    /// `int x^k 2|w| dx` for `k = 0, 1, 2`, with `w = v + r x`.
+    #[derive(Debug, Clone, Copy, PartialEq, Default)]
+    pub struct Integrals {
+        /// `int |w| w dx`.
+        pub w_abs_w: f64,
+        /// `int x |w| w dx`.
+        pub x_w_abs_w: f64,
+        /// `int 2|w| dx` (d/dv of the first).
+        pub d0: f64,
+        /// `int 2|w| x dx`.
+        pub d1: f64,
+        /// `int 2|w| x^2 dx`.
+        pub d2: f64,
+    }
+
+    /// The integrals over `[-L/2, L/2]`. On each side of the point where `w`
+    /// changes sign the integrands are polynomials of degree at most 3, so
+    /// two-point Gauss-Legendre on each piece is exact.
+    pub fn integrals(v: f64, r: f64, length_m: f64) -> Integrals {
+        let half = 0.5 * length_m;
+        let mut out = Integrals::default();
+        let mut add_piece = |a: f64, b: f64| {
+            if b <= a {
+                return;
+            }
+            let mid = 0.5 * (a + b);
+            let half_width = 0.5 * (b - a);
+            let sign = if v + r * mid >= 0.0 { 1.0 } else { -1.0 };
+            let g = half_width / 3f64.sqrt();
+            for x in [mid - g, mid + g] {
+                let w = v + r * x;
+                out.w_abs_w += half_width * sign * w * w;
+                out.x_w_abs_w += half_width * sign * x * w * w;
+                out.d0 += half_width * 2.0 * sign * w;
+                out.d1 += half_width * 2.0 * sign * w * x;
+                out.d2 += half_width * 2.0 * sign * w * x * x;
+            }
+        };
+        let crossing = if r != 0.0 { -v / r } else { f64::INFINITY };
+        if crossing > -half && crossing < half {
+            add_piece(-half, crossing);
+            add_piece(crossing, half);
+        } else {
+            add_piece(-half, half);
+        }
+        out
+    }
+}
+
+/// The continuous-time dynamics at one point: the state derivative, its
+/// Jacobian `A` and the fault sensitivity `B = d xdot / d theta`, on the
+/// 8-state vector.
+struct Derivatives {
+    xdot: SVector<f64, 8>,
+    a: SMatrix<f64, 8, 8>,
+    b: SMatrix<f64, 8, 2>,
+}
+
+impl<const N: usize> OtterTwin<N> {
+    /// Propeller thrusts `[port, starboard]`, N.
+    pub fn thrusts(&self, input: &ShaftSpeeds) -> Vector2<f64> {
+        Vector2::new(
+            self.params.thrust_n(input.port_radps),
+            self.params.thrust_n(input.starboard_radps),
+        )
+    }
+
+    fn xdot(
+        &self,
+        x: &SVector<f64, 8>,
+        thrust: &Vector2<f64>,
+        theta: &SVector<f64, 2>,
+    ) -> SVector<f64, 8> {
+        self.dynamics(x, thrust, theta, false).xdot
+    }
+
+    fn dynamics(
+        &self,
+        x: &SVector<f64, 8>,
+        thrust: &Vector2<f64>,
+        theta: &SVector<f64, 2>,
+        with_jacobians: bool,
+    ) -> Derivatives {
+        let p = &self.params;
+        let (psi, u, v, r) = (x[idx::PSI], x[idx::U], x[idx::V], x[idx::R]);
+        let (s, c) = psi.sin_cos();
+        let m = p.mass_kg;
+        let mxg = m * p.cg_x_m;
+        let a11 = -p.added_mass[0];
+        let a22 = -p.added_mass[1];
+        let [xu, yv, nr] = p.linear_damping;
+        let k_nl = p.yaw_damping_nonlinear_s;
+        let b = p.propeller_offset_m;
+        let cf = 0.5 * p.water_density_kgpm3 * p.draft_m * p.crossflow_drag_coeff;
+        let ints = crossflow::integrals(v, r, p.length_m);
+
+        let eff = [(1.0 - theta[0]) * thrust[0], (1.0 - theta[1]) * thrust[1]];
+        let tau = Vector3::new(eff[0] + eff[1], 0.0, b * (eff[0] - eff[1]));
+        let coriolis = Vector3::new(
+            -mxg * r * r - (m + a22) * v * r,
+            (m + a11) * u * r,
+            mxg * u * r + (a22 - a11) * u * v,
+        );
+        let damping = Vector3::new(
+            xu * u,
+            yv * v - cf * ints.w_abs_w,
+            nr * (1.0 + k_nl * r.abs()) * r - cf * ints.x_w_abs_w,
+        );
+        let nu_dot = self.mass_inverse * (tau - coriolis + damping);
+
+        let mut xdot = SVector::<f64, 8>::zeros();
+        xdot[idx::NORTH] = c * u - s * v + x[idx::CURRENT_NORTH];
+        xdot[idx::EAST] = s * u + c * v + x[idx::CURRENT_EAST];
+        xdot[idx::PSI] = r;
+        xdot[idx::U] = nu_dot[0];
+        xdot[idx::V] = nu_dot[1];
+        xdot[idx::R] = nu_dot[2];
+
+        let mut a = SMatrix::<f64, 8, 8>::zeros();
+        let mut bm = SMatrix::<f64, 8, 2>::zeros();
+        if with_jacobians {
+            a[(idx::NORTH, idx::PSI)] = -s * u - c * v;
+            a[(idx::NORTH, idx::U)] = c;
+            a[(idx::NORTH, idx::V)] = -s;
+            a[(idx::NORTH, idx::CURRENT_NORTH)] = 1.0;
+            a[(idx::EAST, idx::PSI)] = c * u - s * v;
+            a[(idx::EAST, idx::U)] = s;
+            a[(idx::EAST, idx::V)] = c;
+            a[(idx::EAST, idx::CURRENT_EAST)] = 1.0;
+            a[(idx::PSI, idx::R)] = 1.0;
+            // d g / d nu with g = tau - C nu + damping.
+            let dg = Matrix3::new(
+                xu,
+                (m + a22) * r,
+                2.0 * mxg * r + (m + a22) * v,
+                -(m + a11) * r,
+                yv - cf * ints.d0,
+                -(m + a11) * u - cf * ints.d1,
+                -mxg * r - (a22 - a11) * v,
+                -(a22 - a11) * u - cf * ints.d1,
+                nr * (1.0 + 2.0 * k_nl * r.abs()) - mxg * u - cf * ints.d2,
+            );
+            let dnu = self.mass_inverse * dg;
+            a.fixed_view_mut::<3, 3>(idx::U, idx::U).copy_from(&dnu);
+            let dtau = nalgebra::Matrix3x2::new(
+                -thrust[0],
+                -thrust[1],
+                0.0,
+                0.0,
+                -b * thrust[0],
+                b * thrust[1],
+            );
+            bm.fixed_view_mut::<3, 2>(idx::U, 0)
+                .copy_from(&(self.mass_inverse * dtau));
+        }
+        Derivatives { xdot, a, b: bm }
+    }
+
+    /// One filter step on the 8-state vector.
+    fn step8(
+        &self,
+        x0: &SVector<f64, 8>,
+        input: &ShaftSpeeds,
+        theta: &SVector<f64, 2>,
+        dt_s: f64,
+    ) -> Transition<8, 2> {
+        let thrust = self.thrusts(input);
+        // The nonlinear yaw damping shortens the yaw time constant to
+        // M33 / (|N_r| (1 + 2c|r|)) in a hard turn (0.14 s at 17 deg/s):
+        // keep sub-steps at a quarter of it, and at most MAX_SUBSTEP_S.
+        let p = &self.params;
+        let r_start = x0[idx::R];
+        let r_end_euler = r_start + dt_s.min(MAX_SUBSTEP_S) * self.xdot(x0, &thrust, theta)[idx::R];
+        let r_max = r_start.abs().max(r_end_euler.abs());
+        let yaw_tau_s = p.mass_matrix[(2, 2)]
+            / (-p.linear_damping[2] * (1.0 + 2.0 * p.yaw_damping_nonlinear_s * r_max));
+        let max_h = MAX_SUBSTEP_S.min(0.25 * yaw_tau_s);
+        let substeps = (dt_s / max_h).ceil().clamp(1.0, 1000.0) as usize;
+        let h = dt_s / substeps as f64;
+        let mut x = *x0;
+        let mut f = SMatrix::<f64, 8, 8>::identity();
+        let mut psi = SMatrix::<f64, 8, 2>::zeros();
+        for _ in 0..substeps {
+            // The state by classical RK4; the Jacobians of the sub-step from
+            // the derivatives at its midpoint (the second RK stage), as
+            // exp(h A_mid) to second order: accurate to O(h^3).
+            let k1 = self.xdot(&x, &thrust, theta);
+            let mid = self.dynamics(&(x + k1 * (0.5 * h)), &thrust, theta, true);
+            let ha = mid.a * h;
+            let f_sub = SMatrix::<f64, 8, 8>::identity() + ha + ha * ha * 0.5;
+            let b_sub = (mid.b + ha * mid.b * 0.5) * h;
+            psi = f_sub * psi + b_sub;
+            f = f_sub * f;
+            let k2 = mid.xdot;
+            let k3 = self.xdot(&(x + k2 * (0.5 * h)), &thrust, theta);
+            let k4 = self.xdot(&(x + k3 * h), &thrust, theta);
+            x += (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (h / 6.0);
+        }
+        x[idx::PSI] = wrap_pi(x[idx::PSI]);
+        Transition {
+            next: x,
+            jacobian: f,
+            fault_sensitivity: psi,
+        }
+    }
+
+    /// The measurement model on the 8-state vector.
+    fn observe8(&self, x: &SVector<f64, 8>) -> Observation<8, 5> {
+        let (psi, u, v) = (x[idx::PSI], x[idx::U], x[idx::V]);
+        let (s, c) = psi.sin_cos();
+        let vn = c * u - s * v + x[idx::CURRENT_NORTH];
+        let ve = s * u + c * v + x[idx::CURRENT_EAST];
+        let sog = vn.hypot(ve);
+        let sog_safe = sog.max(1e-3);
+        let mut h = SMatrix::<f64, 5, 8>::zeros();
+        h[(meas::NORTH, idx::NORTH)] = 1.0;
+        h[(meas::EAST, idx::EAST)] = 1.0;
+        h[(meas::HEADING, idx::PSI)] = 1.0;
+        // d vn / d x and d ve / d x over (psi, u, v, cn, ce).
+        let dvn = [
+            (idx::PSI, -s * u - c * v),
+            (idx::U, c),
+            (idx::V, -s),
+            (idx::CURRENT_NORTH, 1.0),
+        ];
+        let dve = [
+            (idx::PSI, c * u - s * v),
+            (idx::U, s),
+            (idx::V, c),
+            (idx::CURRENT_EAST, 1.0),
+        ];
+        for (j, d) in dvn {
+            h[(meas::SOG, j)] += vn / sog_safe * d;
+            h[(meas::COG, j)] += -ve / (sog_safe * sog_safe) * d;
+        }
+        for (j, d) in dve {
+            h[(meas::SOG, j)] += ve / sog_safe * d;
+            h[(meas::COG, j)] += vn / (sog_safe * sog_safe) * d;
+        }
+        let predicted = SVector::<f64, 5>::new(x[idx::NORTH], x[idx::EAST], sog, ve.atan2(vn), psi);
+        Observation {
+            predicted,
+            jacobian: h,
+        }
+    }
+}
+
+const MEASUREMENT_ANGLES: [bool; 5] = [false, false, false, true, true];
+const STATE_NAMES: [&str; 8] = [
+    "north_m",
+    "east_m",
+    "heading_rad",
+    "surge_mps",
+    "sway_mps",
+    "yaw_rate_radps",
+    "current_north_mps",
+    "current_east_mps",
+];
+
+impl Model<8, 5, 2> for OtterTwin<8> {
+    type Input = ShaftSpeeds;
+
+    fn transition(
+        &self,
+        x: &SVector<f64, 8>,
+        input: &ShaftSpeeds,
+        theta: &SVector<f64, 2>,
+        dt_s: f64,
+    ) -> Transition<8, 2> {
+        self.step8(x, input, theta, dt_s)
+    }
+
+    fn observe(&self, x: &SVector<f64, 8>) -> Observation<8, 5> {
+        self.observe8(x)
+    }
+
+    fn measurement_angles(&self) -> [bool; 5] {
+        MEASUREMENT_ANGLES
+    }
+
+    fn state_angles(&self) -> [bool; 8] {
+        [false, false, true, false, false, false, false, false]
+    }
+
+    fn state_names(&self) -> [&'static str; 8] {
+        STATE_NAMES
+    }
+}
+
+impl Model<6, 5, 2> for OtterTwin<6> {
+    type Input = ShaftSpeeds;
+
+    fn transition(
+        &self,
+        x: &SVector<f64, 6>,
+        input: &ShaftSpeeds,
+        theta: &SVector<f64, 2>,
+        dt_s: f64,
+    ) -> Transition<6, 2> {
+        let mut x8 = SVector::<f64, 8>::zeros();
+        x8.fixed_rows_mut::<6>(0).copy_from(x);
+        let t = self.step8(&x8, input, theta, dt_s);
+        Transition {
+            next: t.next.fixed_rows::<6>(0).into_owned(),
+            jacobian: t.jacobian.fixed_view::<6, 6>(0, 0).into_owned(),
+            fault_sensitivity: t.fault_sensitivity.fixed_rows::<6>(0).into_owned(),
+        }
+    }
+
+    fn observe(&self, x: &SVector<f64, 6>) -> Observation<6, 5> {
+        let mut x8 = SVector::<f64, 8>::zeros();
+        x8.fixed_rows_mut::<6>(0).copy_from(x);
+        let o = self.observe8(&x8);
+        Observation {
+            predicted: o.predicted,
+            jacobian: o.jacobian.fixed_columns::<6>(0).into_owned(),
+        }
+    }
+
+    fn measurement_angles(&self) -> [bool; 5] {
+        MEASUREMENT_ANGLES
+    }
+
+    fn state_angles(&self) -> [bool; 6] {
+        [false, false, true, false, false, false]
+    }
+
+    fn state_names(&self) -> [&'static str; 6] {
+        [
+            STATE_NAMES[0],
+            STATE_NAMES[1],
+            STATE_NAMES[2],
+            STATE_NAMES[3],
+            STATE_NAMES[4],
+            STATE_NAMES[5],
+        ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn state() -> SVector<f64, 8> {
+        SVector::<f64, 8>::from_column_slice(&[3.0, -4.0, 0.7, 1.6, 0.12, 0.08, 0.2, -0.1])
+    }
+
+    #[test]
+    fn crossflow_integrals_match_fine_quadrature() {
+        for (v, r) in [
+            (0.2, 0.0),
+            (0.0, 0.3),
+            (0.1, -0.4),
+            (-0.3, 0.05),
+            (1e-9, 1e-9),
+            (0.05, 0.2),
+        ] {
+            let ints = crossflow::integrals(v, r, 2.0);
+            let n = 200_000;
+            let dx = 2.0 / n as f64;
+            let (mut i0, mut i1, mut d2) = (0.0, 0.0, 0.0);
+            for k in 0..n {
+                let x = -1.0 + (k as f64 + 0.5) * dx;
+                let w: f64 = v + r * x;
+                i0 += w.abs() * w * dx;
+                i1 += x * w.abs() * w * dx;
+                d2 += 2.0 * w.abs() * x * x * dx;
+            }
+            assert!(
+                (ints.w_abs_w - i0).abs() < 1e-9,
+                "{v} {r}: {} vs {i0}",
+                ints.w_abs_w
+            );
+            assert!((ints.x_w_abs_w - i1).abs() < 1e-9);
+            assert!((ints.d2 - d2).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn continuous_jacobians_match_finite_differences() {
+        let twin = OtterTwin::<8>::default();
+        let thrust = Vector2::new(60.0, 45.0);
+        let theta = SVector::<f64, 2>::new(0.2, 0.05);
+        let x = state();
+        let d = twin.dynamics(&x, &thrust, &theta, true);
+        let eps = 1e-6;
+        for j in 0..8 {
+            let mut xp = x;
+            let mut xm = x;
+            xp[j] += eps;
+            xm[j] -= eps;
+            let num =
+                (twin.xdot(&xp, &thrust, &theta) - twin.xdot(&xm, &thrust, &theta)) / (2.0 * eps);
+            for i in 0..8 {
+                assert!(
+                    (num[i] - d.a[(i, j)]).abs() < 1e-5,
+                    "A[{i},{j}]: {} vs {}",
+                    d.a[(i, j)],
+                    num[i]
+                );
+            }
+        }
+        for j in 0..2 {
+            let mut tp = theta;
+            tp[j] += eps;
+            let num = (twin.xdot(&x, &thrust, &tp) - d.xdot) / eps;
+            for i in 0..8 {
+                assert!((num[i] - d.b[(i, j)]).abs() < 1e-5, "B[{i},{j}]");
+            }
+        }
+    }
+
+    /// Worst absolute difference between the step's Jacobians and central
+    /// finite differences of the step itself.
+    fn step_jacobian_errors(dt: f64) -> (f64, f64) {
+        let twin = OtterTwin::<8>::default();
+        let u = ShaftSpeeds {
+            port_radps: 80.0,
+            starboard_radps: 70.0,
+        };
+        let theta = SVector::<f64, 2>::new(0.2, 0.0);
+        let x = state();
+        let step = |x: &SVector<f64, 8>, th: &SVector<f64, 2>| {
+            Model::<8, 5, 2>::transition(&twin, x, &u, th, dt)
+        };
+        let t = step(&x, &theta);
+        let eps = 1e-6;
+        let (mut worst_f, mut worst_psi) = (0.0f64, 0.0f64);
+        for j in 0..8 {
+            let (mut xp, mut xm) = (x, x);
+            xp[j] += eps;
+            xm[j] -= eps;
+            let num = (step(&xp, &theta).next - step(&xm, &theta).next) / (2.0 * eps);
+            for i in 0..8 {
+                worst_f = worst_f.max((num[i] - t.jacobian[(i, j)]).abs());
+            }
+        }
+        for j in 0..2 {
+            let (mut tp, mut tm) = (theta, theta);
+            tp[j] += eps;
+            tm[j] -= eps;
+            let num = (step(&x, &tp).next - step(&x, &tm).next) / (2.0 * eps);
+            for i in 0..8 {
+                worst_psi = worst_psi.max((num[i] - t.fault_sensitivity[(i, j)]).abs());
+            }
+        }
+        (worst_f, worst_psi)
+    }
+
+    /// The Jacobians are exp(h A_mid) to second order: their error shrinks
+    /// like h^3 per sub-step (8x per halving). At the filter's 0.2 s step in
+    /// a turn they are within about 1 % of the step's own derivatives.
+    #[test]
+    fn step_jacobians_converge_to_the_derivatives_of_the_step() {
+        let (f_small, psi_small) = step_jacobian_errors(0.02);
+        let (f_half, psi_half) = step_jacobian_errors(0.01);
+        let (f_filter, psi_filter) = step_jacobian_errors(0.2);
+        println!(
+            "F error {f_small:.2e} at 0.02 s, {f_half:.2e} at 0.01 s, {f_filter:.2e} at 0.2 s; Psi {psi_small:.2e}, {psi_half:.2e}, {psi_filter:.2e}"
+        );
+        assert!(f_half < f_small / 6.0, "third order: {f_small} -> {f_half}");
+        assert!(
+            psi_half < psi_small / 6.0,
+            "third order: {psi_small} -> {psi_half}"
+        );
+        assert!(
+            f_filter < 1e-2 && psi_filter < 1e-3,
+            "{f_filter} {psi_filter}"
+        );
+    }
+
+    #[test]
+    fn observation_jacobian_matches_finite_differences() {
+        let twin = OtterTwin::<8>::default();
+        let x = state();
+        let o = twin.observe8(&x);
+        let eps = 1e-7;
+        for j in 0..8 {
+            let mut xp = x;
+            xp[j] += eps;
+            let num = (twin.observe8(&xp).predicted - o.predicted) / eps;
+            for i in 0..5 {
+                assert!((num[i] - o.jacobian[(i, j)]).abs() < 1e-5, "H[{i},{j}]");
+            }
+        }
+    }
+
+    #[test]
+    fn physics_sanity() {
+        let twin = OtterTwin::<6>::default();
+        let full = ShaftSpeeds {
+            port_radps: 103.9,
+            starboard_radps: 103.9,
+        };
+        let mut x = SVector::<f64, 6>::zeros();
+        for _ in 0..300 {
+            x = Model::<6, 5, 2>::transition(&twin, &x, &full, &SVector::zeros(), 0.2).next;
+        }
+        // Top speed 3.09 m/s where thrust meets linear damping.
+        assert!((x[idx::U] - 3.09).abs() < 0.02, "{}", x[idx::U]);
+        assert!(x[idx::V].abs() < 1e-9 && x[idx::R].abs() < 1e-9);
+        // A port loss: the bow falls off to port (negative yaw rate).
+        let mut y = x;
+        for _ in 0..5 {
+            y = Model::<6, 5, 2>::transition(
+                &twin,
+                &y,
+                &full,
+                &SVector::<f64, 2>::new(0.3, 0.0),
+                0.2,
+            )
+            .next;
+        }
+        assert!(y[idx::R] < -0.05, "{}", y[idx::R]);
+        // A 0.2 s step of a hard turn agrees with a fine integration to 1 mm,
+        // 1 mm/s and 1 mrad.
+        let u = ShaftSpeeds {
+            port_radps: 90.0,
+            starboard_radps: 30.0,
+        };
+        let one = Model::<6, 5, 2>::transition(&twin, &x, &u, &SVector::zeros(), 0.2).next;
+        let mut fine = x;
+        for _ in 0..100 {
+            fine = Model::<6, 5, 2>::transition(&twin, &fine, &u, &SVector::zeros(), 0.002).next;
+        }
+        assert!(
+            (one - fine).amax() < 1e-3,
+            "{:?} vs {:?}",
+            one.as_slice(),
+            fine.as_slice()
+        );
+    }
+
+    #[test]
+    fn current_moves_the_track_not_the_water_velocity() {
+        let twin = OtterTwin::<8>::default();
+        let mut x = SVector::<f64, 8>::zeros();
+        x[idx::CURRENT_EAST] = 0.3;
+        let t = Model::<8, 5, 2>::transition(
+            &twin,
+            &x,
+            &ShaftSpeeds::default(),
+            &SVector::zeros(),
+            1.0,
+        );
+        assert!((t.next[idx::EAST] - 0.3).abs() < 1e-12);
+        let o = twin.observe8(&t.next);
+        assert!((o.predicted[meas::SOG] - 0.3).abs() < 1e-12);
+        assert!((o.predicted[meas::COG] - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+    }
+}

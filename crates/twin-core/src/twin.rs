@@ -1,0 +1,1177 @@
+//! The vessel twin: one vessel's estimators, fed measurement by measurement.
+//!
+//! This is what the daemon runs per vessel and what `twin analyze` runs over a
+//! log, so both give the same numbers for the same data. It owns
+//! - the local frame (origin at the first accepted fix);
+//! - the validation of every measurement, with a typed [`Rejection`] that
+//!   leaves the estimate exactly as it was;
+//! - the seed's method: inputs derived from GNSS, the kinematic model in the
+//!   adaptive EKF, and the seed's step 4 to per-thruster "faults" (kept for
+//!   comparison: MODEL.md section 5 explains why it cannot see a thrust loss);
+//! - the extended twin: the Otter's kinetic model driven by the measured
+//!   propeller speeds, estimating each propeller's loss and the water current,
+//!   active while propeller data arrive;
+//! - the fault decision and the forecasts.
+//!
+//! Timing rules (documented for the daemon):
+//! - a fix must be newer than the last accepted fix: an equal time is a
+//!   [`Rejection::Duplicate`], an older one [`Rejection::TimeWentBackwards`];
+//! - the filter steps on message time; a gap longer than
+//!   [`GatingConfig::reinitialise_after_gap_s`] restarts the state estimate
+//!   from the next fix (the calibration, i.e. the fault estimate, is kept);
+//! - propeller samples are averaged over each GNSS interval; if none arrived
+//!   within [`KineticConfig::max_propeller_age_s`] the extended twin holds
+//!   and restarts its state when they return.
+
+use nalgebra::{SMatrix, SVector, Vector2, Vector4};
+
+use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
+use crate::decision::{
+    DecisionConfig, FaultDecider, StatusChange, ThrusterDecision, ThrusterStatus,
+};
+use crate::geodesy::{LatLon, LocalFrame, NorthEast, wrap_pi, wrap_two_pi};
+use crate::inputs::{Butterworth, InputConfigError, InputDerivationConfig, InputDeriver, LowPass};
+use crate::model::{Measurement, Model};
+use crate::models::kinematic::{KinematicInput, KinematicModel};
+use crate::models::otter_twin::{OtterTwin, ShaftSpeeds, idx, meas};
+use crate::otter::{OtterParams, seed_thruster_faults};
+use crate::predict::{PredictedPoint, predict};
+use crate::sample::{GnssFix, PropellerSpeeds, Side};
+
+/// Why a measurement was not used. The estimate is unchanged after any.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum Rejection {
+    /// A number is NaN or infinite.
+    #[error("non-finite {field}")]
+    NonFinite {
+        /// Which field.
+        field: &'static str,
+    },
+    /// A value is outside its physical range.
+    #[error("{field} = {value} is out of range")]
+    OutOfRange {
+        /// Which field.
+        field: &'static str,
+        /// The value received.
+        value: f64,
+    },
+    /// The same time as the last accepted measurement of its kind.
+    #[error("duplicate time stamp {time_s}")]
+    Duplicate {
+        /// The repeated time, s.
+        time_s: f64,
+    },
+    /// Older than the last accepted measurement of its kind.
+    #[error("time went backwards by {by_s} s")]
+    TimeWentBackwards {
+        /// How much older, s.
+        by_s: f64,
+    },
+    /// A position jump faster than any vessel of this kind moves.
+    #[error("position jumped {distance_m:.0} m in {dt_s:.2} s")]
+    Jump {
+        /// Distance from the expected position, m.
+        distance_m: f64,
+        /// Time since the last accepted fix, s.
+        dt_s: f64,
+    },
+    /// The filter refused the step (non-positive-definite matrix and the like).
+    #[error("estimator refused the step: {0}")]
+    Estimator(AekfError),
+}
+
+impl Rejection {
+    /// A short, stable name for counting rejections by reason.
+    pub fn reason(&self) -> &'static str {
+        match self {
+            Rejection::NonFinite { .. } => "non_finite",
+            Rejection::OutOfRange { .. } => "out_of_range",
+            Rejection::Duplicate { .. } => "duplicate",
+            Rejection::TimeWentBackwards { .. } => "time_backwards",
+            Rejection::Jump { .. } => "position_jump",
+            Rejection::Estimator(_) => "estimator",
+        }
+    }
+}
+
+/// Validation limits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GatingConfig {
+    /// Fastest credible speed over ground, m/s; a fix implying more is a jump.
+    pub max_speed_mps: f64,
+    /// Slack on the jump test for position noise, m.
+    pub jump_slack_m: f64,
+    /// After this many consecutive jump rejections that agree with each
+    /// other, the vessel really is there: restart from them.
+    pub jumps_before_restart: u32,
+    /// A gap in fixes longer than this restarts the state estimate, s.
+    pub reinitialise_after_gap_s: f64,
+    /// Below this speed over ground the course is meaningless and masked, m/s.
+    pub min_sog_for_course_mps: f64,
+}
+
+impl Default for GatingConfig {
+    fn default() -> Self {
+        Self {
+            max_speed_mps: 20.0,
+            jump_slack_m: 25.0,
+            jumps_before_restart: 5,
+            reinitialise_after_gap_s: 30.0,
+            min_sog_for_course_mps: 0.3,
+        }
+    }
+}
+
+/// The seed's method.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SeedConfig {
+    /// The filter's tuning.
+    pub filter: AekfConfig<4, 4, 2>,
+    /// How inputs are derived from GNSS.
+    pub inputs: InputDerivationConfig,
+    /// Low-pass cut-off for the yaw acceleration of step 4, Hz (thesis: 0.9).
+    pub yaw_accel_cutoff_hz: f64,
+    /// Step 4's guard: thrusts below this give no per-thruster fault, N.
+    pub min_thrust_n: f64,
+}
+
+impl SeedConfig {
+    /// The seed's tuning (MODEL.md section 4) at its 5 Hz, with the forgetting
+    /// as the time constant it implies there (40 s) and the thesis' inputs.
+    pub fn seed() -> Self {
+        let dt = 0.2;
+        Self {
+            filter: AekfConfig {
+                process_noise_density: SMatrix::identity() * (0.01 / dt),
+                measurement_noise: SMatrix::identity() * 0.04,
+                forgetting_time_constant_s: -dt / 0.995_f64.ln(),
+                initial_fault_covariance: SMatrix::identity() * 0.1,
+                anti_windup_ratio: 0.1,
+                excitation_sigma: 0.02,
+                noise_adaptation: None,
+            },
+            inputs: InputDerivationConfig::thesis(),
+            yaw_accel_cutoff_hz: 0.9,
+            min_thrust_n: 5.0,
+        }
+    }
+}
+
+/// The extended twin.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KineticConfig {
+    /// The vessel's parameters.
+    pub params: OtterParams,
+    /// The filter's tuning.
+    pub filter: AekfConfig<8, 5, 2>,
+    /// Initial standard deviation of the water current estimate, m/s.
+    pub initial_current_sigma_mps: f64,
+    /// Estimate the water current (off: the current is held at zero).
+    pub estimate_current: bool,
+    /// Propeller data older than this stop the extended twin, s.
+    pub max_propeller_age_s: f64,
+    /// With the current estimated, a straight run cannot tell a loss shared by
+    /// both propellers from a current along the track (both slow the vessel
+    /// alike); only turning separates them. The losses count as excited only
+    /// while the heading over the filter's memory has spread at least this
+    /// much: `1 - |mean of (cos psi, sin psi)|`, 0.05 being about a 65 deg arc.
+    pub min_heading_spread: f64,
+}
+
+impl KineticConfig {
+    /// The Otter with 5 Hz GNSS (0.3 m, 0.05 m/s) and heading, if any, at 0.5 deg.
+    pub fn otter() -> Self {
+        let q = SVector::<f64, 8>::from_column_slice(&[
+            1e-4, 1e-4, 1e-5, // position and heading: the kinematics are exact
+            2e-3, 2e-3, 1e-4, // unmodelled forces on surge, sway, yaw
+            1e-6, 1e-6, // the current drifts slowly
+        ]);
+        let r = SVector::<f64, 5>::from_column_slice(&[
+            0.3 * 0.3,
+            0.3 * 0.3,
+            0.05 * 0.05,
+            0.03 * 0.03,
+            0.0087 * 0.0087,
+        ]);
+        Self {
+            params: OtterParams::default(),
+            filter: AekfConfig {
+                process_noise_density: SMatrix::from_diagonal(&q),
+                measurement_noise: SMatrix::from_diagonal(&r),
+                forgetting_time_constant_s: 60.0,
+                initial_fault_covariance: SMatrix::identity() * 0.1,
+                anti_windup_ratio: 0.1,
+                excitation_sigma: 0.03,
+                noise_adaptation: None,
+            },
+            initial_current_sigma_mps: 0.5,
+            estimate_current: true,
+            max_propeller_age_s: 1.0,
+            min_heading_spread: 0.05,
+        }
+    }
+}
+
+/// Everything the twin of one vessel is configured with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TwinConfig {
+    /// Validation limits.
+    pub gating: GatingConfig,
+    /// The seed's method.
+    pub seed: SeedConfig,
+    /// The extended twin.
+    pub kinetic: KineticConfig,
+    /// Fault decision thresholds.
+    pub decision: DecisionConfig,
+}
+
+impl Default for TwinConfig {
+    fn default() -> Self {
+        Self {
+            gating: GatingConfig::default(),
+            seed: SeedConfig::seed(),
+            kinetic: KineticConfig::otter(),
+            decision: DecisionConfig::default(),
+        }
+    }
+}
+
+/// Which estimator a fault estimate comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FaultSource {
+    /// The extended twin: per-propeller losses from propeller speeds.
+    Kinetic,
+    /// The seed's method: per-thruster values from its input faults (step 4).
+    /// Not a measurement of thrust loss (MODEL.md section 5).
+    SeedMethod,
+}
+
+/// The fault estimate of one thruster.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ThrusterEstimate {
+    /// Estimated loss of effectiveness (raw: may leave [0, 1] slightly).
+    pub loss: f64,
+    /// Its standard deviation.
+    pub sigma: f64,
+    /// Whether the recent data can tell it.
+    pub excited: bool,
+    /// The decision about it.
+    pub decision: ThrusterDecision,
+}
+
+/// The fault picture at one time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FaultReport {
+    /// Time, s.
+    pub time_s: f64,
+    /// Which estimator.
+    pub source: FaultSource,
+    /// Port and starboard.
+    pub thrusters: [ThrusterEstimate; 2],
+    /// The worst status.
+    pub status: ThrusterStatus,
+    /// The seed method's input faults `[theta_a, theta_r]`.
+    pub seed_input_faults: Vector2<f64>,
+}
+
+/// The state estimate at one time, in the frames users read.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StateReport {
+    /// Time, s.
+    pub time_s: f64,
+    /// Position.
+    pub position: LatLon,
+    /// Position in the local frame.
+    pub local: NorthEast,
+    /// Standard deviations of north and east, m.
+    pub position_sigma_m: [f64; 2],
+    /// Speed over ground, m/s, and its standard deviation.
+    pub sog_mps: f64,
+    /// Standard deviation of the speed over ground, m/s.
+    pub sog_sigma_mps: f64,
+    /// Course over ground, rad in [0, 2 pi).
+    pub cog_rad: f64,
+    /// Standard deviation of the course, rad.
+    pub cog_sigma_rad: f64,
+    /// Heading, rad, where the estimator has it (the extended twin).
+    pub heading_rad: Option<f64>,
+    /// Water current `[north, east]`, m/s, where estimated.
+    pub current_mps: Option<[f64; 2]>,
+    /// Normalised innovation squared of the last step and its degrees of freedom.
+    pub nis: f64,
+    /// Degrees of freedom of `nis`.
+    pub nis_dof: usize,
+    /// Which estimator this is.
+    pub source: FaultSource,
+}
+
+/// What one accepted fix produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepOutput {
+    /// The state estimate after the fix.
+    pub state: StateReport,
+    /// The fault picture after the fix.
+    pub faults: FaultReport,
+    /// Status changes declared by this fix (alarms).
+    pub changes: Vec<StatusChange>,
+    /// The innovation of the reporting estimator (for residual analysis),
+    /// `[north, east, sog, cog, heading]` (heading 0 for the seed model), with
+    /// which were available.
+    pub innovation: [f64; 5],
+    /// Which innovation components were measured.
+    pub innovation_available: [bool; 5],
+}
+
+/// One predicted point in user frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ForecastPoint {
+    /// Time, s.
+    pub time_s: f64,
+    /// Position.
+    pub position: LatLon,
+    /// Local position.
+    pub local: NorthEast,
+    /// Standard deviations of north and east, m.
+    pub position_sigma_m: [f64; 2],
+    /// Speed over ground, m/s.
+    pub sog_mps: f64,
+    /// Course over ground, rad.
+    pub cog_rad: f64,
+}
+
+/// A calibration to save and restore: what the twin has learnt about the
+/// vessel, independent of where it is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Calibration {
+    /// Which estimator learnt it.
+    pub source: FaultSource,
+    /// Fault estimate.
+    pub theta: [f64; 2],
+    /// Fault covariance (row-major 2x2).
+    pub theta_covariance: [f64; 4],
+    /// Held information per fault (anti-windup memory).
+    pub held_information: [f64; 2],
+    /// The decision per thruster.
+    pub decisions: [ThrusterDecision; 2],
+    /// Time of the last fix it was learnt from, s.
+    pub time_s: f64,
+}
+
+#[derive(Debug, Clone)]
+struct SeedEstimator {
+    filter: Aekf<KinematicModel, 4, 4, 2>,
+    state: Option<AekfState<4, 4, 2>>,
+    deriver: InputDeriver,
+    yaw_accel: YawAcceleration,
+    last_input: KinematicInput,
+    last_report: Option<StepReport<4, 2>>,
+    last_available: [bool; 4],
+    thruster_loss: [Option<f64>; 2],
+}
+
+/// The seed's yaw acceleration for step 4: differences of the derived course
+/// rate, low-passed (thesis eq. 3.18, 0.9 Hz).
+#[derive(Debug, Clone)]
+struct YawAcceleration {
+    filter: Butterworth,
+    last: Option<(f64, f64)>,
+}
+
+impl YawAcceleration {
+    fn push(&mut self, time_s: f64, rate: f64) -> f64 {
+        let raw = match self.last {
+            Some((t0, r0)) if time_s > t0 => (rate - r0) / (time_s - t0),
+            _ => 0.0,
+        };
+        self.last = Some((time_s, rate));
+        self.filter.step(raw)
+    }
+}
+
+#[derive(Debug, Clone)]
+struct KineticEstimator {
+    filter: Aekf<OtterTwin<8>, 8, 5, 2>,
+    state: Option<AekfState<8, 5, 2>>,
+    last_report: Option<StepReport<5, 2>>,
+    last_available: [bool; 5],
+    last_input: Option<ShaftSpeeds>,
+    /// Exponentially weighted mean of the unit heading vector over the
+    /// filter's memory (see [`KineticConfig::min_heading_spread`]).
+    heading_mean: [f64; 2],
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct PropellerAccumulator {
+    sum_port: f64,
+    sum_stb: f64,
+    count: u32,
+    last: Option<PropellerSpeeds>,
+}
+
+/// The twin of one vessel.
+#[derive(Debug, Clone)]
+pub struct VesselTwin {
+    config: TwinConfig,
+    frame: Option<LocalFrame>,
+    last_fix: Option<(f64, NorthEast)>,
+    jump_run: Vec<(f64, NorthEast)>,
+    seed: SeedEstimator,
+    kinetic: KineticEstimator,
+    propellers: PropellerAccumulator,
+    last_propeller_time_s: Option<f64>,
+    decider: FaultDecider,
+    restored: Option<Calibration>,
+}
+
+/// Why a twin cannot be configured.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum TwinConfigError {
+    /// A filter's tuning is unusable.
+    #[error("filter: {0}")]
+    Filter(#[from] AekfError),
+    /// The input derivation is unusable.
+    #[error("input derivation: {0}")]
+    Inputs(#[from] InputConfigError),
+}
+
+impl VesselTwin {
+    /// A twin with `config` that has seen nothing yet.
+    pub fn new(config: TwinConfig) -> Result<Self, TwinConfigError> {
+        let rate = match config.seed.inputs.low_pass {
+            LowPass::Butterworth { sample_rate_hz, .. } => sample_rate_hz,
+            _ => 5.0,
+        };
+        let mut kinetic_filter = config.kinetic.filter;
+        if !config.kinetic.estimate_current {
+            kinetic_filter.process_noise_density[(idx::CURRENT_NORTH, idx::CURRENT_NORTH)] = 0.0;
+            kinetic_filter.process_noise_density[(idx::CURRENT_EAST, idx::CURRENT_EAST)] = 0.0;
+        }
+        Ok(Self {
+            seed: SeedEstimator {
+                filter: Aekf::new(KinematicModel, config.seed.filter)?,
+                state: None,
+                deriver: InputDeriver::new(config.seed.inputs)?,
+                yaw_accel: YawAcceleration {
+                    filter: Butterworth::new(5, config.seed.yaw_accel_cutoff_hz, rate)?,
+                    last: None,
+                },
+                last_input: KinematicInput::default(),
+                last_report: None,
+                last_available: [false; 4],
+                thruster_loss: [None, None],
+            },
+            kinetic: KineticEstimator {
+                filter: Aekf::new(OtterTwin::new(config.kinetic.params), kinetic_filter)?,
+                state: None,
+                last_report: None,
+                last_available: [false; 5],
+                last_input: None,
+                heading_mean: [0.0; 2],
+            },
+            config,
+            frame: None,
+            last_fix: None,
+            jump_run: Vec::new(),
+            propellers: PropellerAccumulator::default(),
+            last_propeller_time_s: None,
+            decider: FaultDecider::new(config.decision),
+            restored: None,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &TwinConfig {
+        &self.config
+    }
+
+    /// The local frame, once the first fix fixed its origin.
+    pub fn frame(&self) -> Option<&LocalFrame> {
+        self.frame.as_ref()
+    }
+
+    /// Whether the extended twin (propeller data) is running.
+    pub fn kinetic_active(&self) -> bool {
+        self.kinetic.state.is_some()
+    }
+
+    /// Takes a propeller-speed sample.
+    pub fn on_propellers(&mut self, p: &PropellerSpeeds) -> Result<(), Rejection> {
+        for (field, v) in [
+            ("time", p.time_s),
+            ("port", p.port_radps),
+            ("starboard", p.starboard_radps),
+        ] {
+            if !v.is_finite() {
+                return Err(Rejection::NonFinite { field });
+            }
+        }
+        for (field, v) in [("port", p.port_radps), ("starboard", p.starboard_radps)] {
+            // 3x the Otter's shaft limit: anything beyond is not a shaft speed.
+            if v.abs() > 3.0 * self.config.kinetic.params.max_shaft_speed_radps {
+                return Err(Rejection::OutOfRange { field, value: v });
+            }
+        }
+        if let Some(last) = self.last_propeller_time_s {
+            if p.time_s == last {
+                return Err(Rejection::Duplicate { time_s: p.time_s });
+            }
+            if p.time_s < last {
+                return Err(Rejection::TimeWentBackwards {
+                    by_s: last - p.time_s,
+                });
+            }
+        }
+        self.last_propeller_time_s = Some(p.time_s);
+        let acc = &mut self.propellers;
+        acc.sum_port += p.port_radps;
+        acc.sum_stb += p.starboard_radps;
+        acc.count += 1;
+        acc.last = Some(*p);
+        Ok(())
+    }
+
+    fn validate_fix(&self, fix: &GnssFix) -> Result<(), Rejection> {
+        let finite = [
+            ("time", Some(fix.time_s)),
+            ("lat_deg", Some(fix.position.lat_deg)),
+            ("lon_deg", Some(fix.position.lon_deg)),
+            ("sog_mps", fix.sog_mps),
+            ("cog_rad", fix.cog_rad),
+            ("heading_rad", fix.heading_rad),
+            ("hdop", fix.hdop),
+        ];
+        for (field, v) in finite {
+            if let Some(v) = v
+                && !v.is_finite()
+            {
+                return Err(Rejection::NonFinite { field });
+            }
+        }
+        if fix.position.lat_deg.abs() > 90.0 {
+            return Err(Rejection::OutOfRange {
+                field: "lat_deg",
+                value: fix.position.lat_deg,
+            });
+        }
+        if fix.position.lon_deg.abs() > 180.0 {
+            return Err(Rejection::OutOfRange {
+                field: "lon_deg",
+                value: fix.position.lon_deg,
+            });
+        }
+        if fix.position.lat_deg.abs() > 89.0 {
+            return Err(Rejection::OutOfRange {
+                field: "lat_deg (polar)",
+                value: fix.position.lat_deg,
+            });
+        }
+        if let Some(s) = fix.sog_mps
+            && !(0.0..=self.config.gating.max_speed_mps * 2.0).contains(&s)
+        {
+            return Err(Rejection::OutOfRange {
+                field: "sog_mps",
+                value: s,
+            });
+        }
+        if let Some(h) = fix.hdop
+            && h <= 0.0
+        {
+            return Err(Rejection::OutOfRange {
+                field: "hdop",
+                value: h,
+            });
+        }
+        if let Some((t, _)) = self.last_fix {
+            if fix.time_s == t {
+                return Err(Rejection::Duplicate { time_s: t });
+            }
+            if fix.time_s < t {
+                return Err(Rejection::TimeWentBackwards {
+                    by_s: t - fix.time_s,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Takes a GNSS fix: validates it, steps the estimators, updates the
+    /// decision. On `Err` nothing changed.
+    pub fn on_gnss(&mut self, fix: &GnssFix) -> Result<StepOutput, Rejection> {
+        self.validate_fix(fix)?;
+        let frame = match self.frame {
+            Some(f) => f,
+            None => LocalFrame::new(fix.position).map_err(|_| Rejection::OutOfRange {
+                field: "lat_deg",
+                value: fix.position.lat_deg,
+            })?,
+        };
+        let ne = frame.to_local(fix.position);
+        let g = self.config.gating;
+
+        // Jump test against the last accepted fix.
+        let mut restart = false;
+        if let Some((t, last)) = self.last_fix {
+            let dt = fix.time_s - t;
+            let distance = (ne.north_m - last.north_m).hypot(ne.east_m - last.east_m);
+            if dt <= g.reinitialise_after_gap_s && distance > g.max_speed_mps * dt + g.jump_slack_m
+            {
+                // Consecutive jumps that agree with each other mean the vessel
+                // really is there (or the receiver re-converged): restart.
+                let consistent = self.jump_run.last().is_none_or(|(tj, pj)| {
+                    let d = (ne.north_m - pj.north_m).hypot(ne.east_m - pj.east_m);
+                    d <= g.max_speed_mps * (fix.time_s - tj) + g.jump_slack_m
+                });
+                if !consistent {
+                    self.jump_run.clear();
+                }
+                if (self.jump_run.len() as u32) + 1 < g.jumps_before_restart {
+                    self.note_jump(fix.time_s, ne);
+                    return Err(Rejection::Jump {
+                        distance_m: distance,
+                        dt_s: dt,
+                    });
+                }
+                restart = true;
+            } else if dt > g.reinitialise_after_gap_s {
+                restart = true;
+            }
+        }
+
+        // Step on clones so that a refused step leaves everything as it was.
+        let mut next = self.clone();
+        next.frame = Some(frame);
+        if restart {
+            next.seed.state = None;
+            next.kinetic.state = None;
+        }
+        let changes = next.step_estimators(fix, ne, restart)?;
+        next.jump_run.clear();
+        next.last_fix = Some((fix.time_s, ne));
+        let out = next.output(fix.time_s, changes);
+        *self = next;
+        Ok(out)
+    }
+
+    /// Records a rejected jump so that a run of consistent ones can restart
+    /// the estimate. Bookkeeping only: the estimate is untouched.
+    fn note_jump(&mut self, time_s: f64, ne: NorthEast) {
+        self.jump_run.push((time_s, ne));
+        if self.jump_run.len() > 16 {
+            self.jump_run.remove(0);
+        }
+    }
+
+    fn step_estimators(
+        &mut self,
+        fix: &GnssFix,
+        ne: NorthEast,
+        restarted: bool,
+    ) -> Result<Vec<StatusChange>, Rejection> {
+        let g = self.config.gating;
+        let dt = self.last_fix.map(|(t, _)| fix.time_s - t);
+        let course_ok = fix.sog_mps.is_some_and(|s| s >= g.min_sog_for_course_mps);
+
+        // --- The seed's method.
+        let sog = fix.sog_mps;
+        let cog = fix.cog_rad.map(wrap_pi);
+        let derived = match (sog, cog) {
+            (Some(s), Some(c)) if !restarted => self.seed.deriver.push(fix.time_s, s, c),
+            (Some(s), Some(c)) => {
+                self.seed.deriver = InputDeriver::new(self.config.seed.inputs)
+                    .map_err(|_| Rejection::Estimator(AekfError::InvalidConfig("inputs")))?;
+                self.seed.deriver.push(fix.time_s, s, c)
+            }
+            _ => None,
+        };
+        let y_seed = Measurement {
+            values: Vector4::new(
+                ne.north_m,
+                ne.east_m,
+                sog.unwrap_or(0.0),
+                cog.unwrap_or(0.0),
+            ),
+            available: [true, true, sog.is_some(), cog.is_some() && course_ok],
+        };
+        match (&mut self.seed.state, dt) {
+            (Some(state), Some(dt)) => {
+                let input = derived.unwrap_or(self.seed.last_input);
+                let report = self
+                    .seed
+                    .filter
+                    .step(state, &input, &y_seed, dt)
+                    .map_err(Rejection::Estimator)?;
+                self.seed.last_report = Some(report);
+                self.seed.last_available = y_seed.available;
+                self.seed.last_input = input;
+                let r_dot = self
+                    .seed
+                    .yaw_accel
+                    .push(fix.time_s, input.course_rate_radps);
+                let faults = seed_thruster_faults(
+                    &self.config.kinetic.params,
+                    state.x[2],
+                    input.course_rate_radps,
+                    input.accel_mps2,
+                    r_dot,
+                    state.theta,
+                    self.config.seed.min_thrust_n,
+                );
+                self.seed.thruster_loss = faults.loss;
+            }
+            _ => {
+                let x0 = Vector4::new(
+                    ne.north_m,
+                    ne.east_m,
+                    sog.unwrap_or(0.0),
+                    cog.unwrap_or(0.0),
+                );
+                let p0 = self.config.seed.filter.measurement_noise;
+                let theta0 = self.restored_theta(FaultSource::SeedMethod);
+                let mut st = AekfState::new(&self.config.seed.filter, x0, p0, theta0.0);
+                if let Some(s) = theta0.1 {
+                    st.s = s;
+                }
+                self.seed.state = Some(st);
+            }
+        }
+
+        // --- The extended twin, while propeller data arrive.
+        let acc = std::mem::take(&mut self.propellers);
+        let input = if acc.count > 0 {
+            Some(ShaftSpeeds {
+                port_radps: acc.sum_port / acc.count as f64,
+                starboard_radps: acc.sum_stb / acc.count as f64,
+            })
+        } else {
+            acc.last
+                .filter(|p| fix.time_s - p.time_s <= self.config.kinetic.max_propeller_age_s)
+                .map(|p| ShaftSpeeds {
+                    port_radps: p.port_radps,
+                    starboard_radps: p.starboard_radps,
+                })
+        };
+        self.propellers.last = acc.last;
+        match input {
+            None => self.kinetic.state = None,
+            Some(u) => {
+                let heading = fix.heading_rad.map(wrap_pi);
+                let y = Measurement {
+                    values: SVector::<f64, 5>::from_column_slice(&[
+                        ne.north_m,
+                        ne.east_m,
+                        sog.unwrap_or(0.0),
+                        cog.unwrap_or(0.0),
+                        heading.unwrap_or(0.0),
+                    ]),
+                    available: [
+                        true,
+                        true,
+                        sog.is_some(),
+                        cog.is_some() && course_ok,
+                        heading.is_some(),
+                    ],
+                };
+                match (&mut self.kinetic.state, dt) {
+                    (Some(state), Some(dt)) => {
+                        let report = self
+                            .kinetic
+                            .filter
+                            .step(state, &u, &y, dt)
+                            .map_err(Rejection::Estimator)?;
+                        if !self.config.kinetic.estimate_current {
+                            state.x[idx::CURRENT_NORTH] = 0.0;
+                            state.x[idx::CURRENT_EAST] = 0.0;
+                        }
+                        self.kinetic.last_report = Some(report);
+                        self.kinetic.last_available = y.available;
+                        let w = 1.0 - self.kinetic.filter.lambda(dt);
+                        let (sin_h, cos_h) = state.x[idx::PSI].sin_cos();
+                        let m = &mut self.kinetic.heading_mean;
+                        m[0] += w * (cos_h - m[0]);
+                        m[1] += w * (sin_h - m[1]);
+                    }
+                    _ => {
+                        let st = self.initial_kinetic_state(fix, ne);
+                        let (sin_h, cos_h) = st.x[idx::PSI].sin_cos();
+                        self.kinetic.heading_mean = [cos_h, sin_h];
+                        self.kinetic.state = Some(st);
+                    }
+                }
+                self.kinetic.last_input = Some(u);
+            }
+        }
+
+        // --- The decision, from the extended twin where it runs.
+        let faults = self.fault_report(fix.time_s);
+        let loss = [faults.thrusters[0].loss, faults.thrusters[1].loss];
+        let sigma = [faults.thrusters[0].sigma, faults.thrusters[1].sigma];
+        let excited = [faults.thrusters[0].excited, faults.thrusters[1].excited];
+        Ok(match faults.source {
+            FaultSource::Kinetic => self.decider.update(fix.time_s, loss, sigma, excited),
+            FaultSource::SeedMethod => Vec::new(),
+        })
+    }
+
+    fn restored_theta(&self, source: FaultSource) -> (SVector<f64, 2>, Option<SMatrix<f64, 2, 2>>) {
+        match self.restored {
+            Some(c) if c.source == source => (
+                Vector2::new(c.theta[0], c.theta[1]),
+                Some(SMatrix::<f64, 2, 2>::new(
+                    c.theta_covariance[0],
+                    c.theta_covariance[1],
+                    c.theta_covariance[2],
+                    c.theta_covariance[3],
+                )),
+            ),
+            _ => (SVector::zeros(), None),
+        }
+    }
+
+    fn initial_kinetic_state(&self, fix: &GnssFix, ne: NorthEast) -> AekfState<8, 5, 2> {
+        let cfg = &self.config.kinetic;
+        let sog = fix.sog_mps.unwrap_or(0.0);
+        let psi = fix.heading_rad.or(fix.cog_rad).map(wrap_pi).unwrap_or(0.0);
+        let mut x0 = SVector::<f64, 8>::zeros();
+        x0[idx::NORTH] = ne.north_m;
+        x0[idx::EAST] = ne.east_m;
+        x0[idx::PSI] = psi;
+        x0[idx::U] = sog;
+        let r = &cfg.filter.measurement_noise;
+        let heading_var = if fix.heading_rad.is_some() {
+            r[(meas::HEADING, meas::HEADING)]
+        } else {
+            0.5f64.powi(2)
+        };
+        let cur_var = if cfg.estimate_current {
+            cfg.initial_current_sigma_mps.powi(2)
+        } else {
+            1e-12
+        };
+        let p0 = SMatrix::<f64, 8, 8>::from_diagonal(&SVector::<f64, 8>::from_column_slice(&[
+            r[(meas::NORTH, meas::NORTH)],
+            r[(meas::EAST, meas::EAST)],
+            heading_var,
+            0.3f64.powi(2) + cur_var,
+            0.3f64.powi(2),
+            0.1f64.powi(2),
+            cur_var,
+            cur_var,
+        ]));
+        let (theta0, s0) = self.restored_theta(FaultSource::Kinetic);
+        let mut st = AekfState::new(&cfg.filter, x0, p0, theta0);
+        if let Some(s) = s0 {
+            st.s = s;
+        }
+        st
+    }
+
+    /// Restores a saved calibration: the next estimator started takes its
+    /// fault estimate and covariance from it, and the decisions hold.
+    pub fn restore(&mut self, calibration: Calibration) {
+        self.restored = Some(calibration);
+        for side in Side::BOTH {
+            self.decider
+                .restore(side, calibration.decisions[side.index()]);
+        }
+        let (theta, s) = self.restored_theta(calibration.source);
+        match calibration.source {
+            FaultSource::Kinetic => {
+                if let Some(st) = &mut self.kinetic.state {
+                    st.theta = theta;
+                    st.s = s.unwrap_or(st.s);
+                }
+            }
+            FaultSource::SeedMethod => {
+                if let Some(st) = &mut self.seed.state {
+                    st.theta = theta;
+                    st.s = s.unwrap_or(st.s);
+                }
+            }
+        }
+    }
+
+    /// What the twin has learnt, to save.
+    pub fn calibration(&self) -> Option<Calibration> {
+        let time_s = self.last_fix.map(|(t, _)| t)?;
+        let (source, theta, s, held) = if let Some(k) = &self.kinetic.state {
+            (FaultSource::Kinetic, k.theta, k.s, k.held_information)
+        } else if let Some(r) = self.restored {
+            return Some(r);
+        } else {
+            let st = self.seed.state.as_ref()?;
+            (FaultSource::SeedMethod, st.theta, st.s, st.held_information)
+        };
+        Some(Calibration {
+            source,
+            theta: [theta[0], theta[1]],
+            theta_covariance: [s[(0, 0)], s[(0, 1)], s[(1, 0)], s[(1, 1)]],
+            held_information: [held[0], held[1]],
+            decisions: [
+                self.decider.decision(Side::Port),
+                self.decider.decision(Side::Starboard),
+            ],
+            time_s,
+        })
+    }
+
+    /// The current fault picture at `time_s`.
+    pub fn fault_report(&self, time_s: f64) -> FaultReport {
+        let seed_theta = self
+            .seed
+            .state
+            .map(|s| s.theta)
+            .unwrap_or_else(SVector::zeros);
+        let (source, thrusters) = match &self.kinetic.state {
+            Some(k) => {
+                let sigma = k.fault_sigma();
+                let spread_ok = !self.config.kinetic.estimate_current
+                    || self.heading_spread() >= self.config.kinetic.min_heading_spread;
+                let excited = k
+                    .excited(self.config.kinetic.filter.excitation_sigma)
+                    .map(|e| e && spread_ok);
+                (
+                    FaultSource::Kinetic,
+                    std::array::from_fn(|i| ThrusterEstimate {
+                        loss: k.theta[i],
+                        sigma: sigma[i],
+                        excited: excited[i],
+                        decision: self.decider.decision(Side::BOTH[i]),
+                    }),
+                )
+            }
+            None => (
+                FaultSource::SeedMethod,
+                std::array::from_fn(|i| ThrusterEstimate {
+                    loss: self.seed.thruster_loss[i].unwrap_or(f64::NAN),
+                    sigma: f64::NAN,
+                    excited: self.seed.thruster_loss[i].is_some(),
+                    decision: ThrusterDecision {
+                        status: ThrusterStatus::NotExcited,
+                        onset_time_s: None,
+                    },
+                }),
+            ),
+        };
+        FaultReport {
+            time_s,
+            source,
+            status: match source {
+                FaultSource::Kinetic => self.decider.overall(),
+                FaultSource::SeedMethod => ThrusterStatus::NotExcited,
+            },
+            thrusters,
+            seed_input_faults: seed_theta,
+        }
+    }
+
+    /// How much the heading has varied over the extended twin's memory:
+    /// `1 - |mean unit heading vector|` (0 on a straight line, 1 - 2/pi for
+    /// a half circle).
+    pub fn heading_spread(&self) -> f64 {
+        let m = self.kinetic.heading_mean;
+        1.0 - m[0].hypot(m[1])
+    }
+
+    /// The seed method's per-thruster values at the last fix (step 4).
+    pub fn seed_thruster_loss(&self) -> [Option<f64>; 2] {
+        self.seed.thruster_loss
+    }
+
+    /// The seed method's filter state, if running.
+    pub fn seed_state(&self) -> Option<&AekfState<4, 4, 2>> {
+        self.seed.state.as_ref()
+    }
+
+    /// The extended twin's filter state, if running.
+    pub fn kinetic_state(&self) -> Option<&AekfState<8, 5, 2>> {
+        self.kinetic.state.as_ref()
+    }
+
+    /// The state estimate at the last fix, from the extended twin where it
+    /// runs, else from the seed's model.
+    pub fn state_report(&self) -> Option<StateReport> {
+        let frame = self.frame?;
+        let (time_s, _) = self.last_fix?;
+        if let Some(k) = &self.kinetic.state {
+            let obs = self.kinetic.filter.model.observe(&k.x);
+            let cov = obs.jacobian * k.p * obs.jacobian.transpose();
+            let local = NorthEast {
+                north_m: k.x[idx::NORTH],
+                east_m: k.x[idx::EAST],
+            };
+            let (nis, dof) = self
+                .kinetic
+                .last_report
+                .map(|r| (r.nis, r.dof))
+                .unwrap_or((0.0, 0));
+            return Some(StateReport {
+                time_s,
+                position: frame.to_geodetic(local),
+                local,
+                position_sigma_m: [k.p[(0, 0)].sqrt(), k.p[(1, 1)].sqrt()],
+                sog_mps: obs.predicted[meas::SOG],
+                sog_sigma_mps: cov[(meas::SOG, meas::SOG)].max(0.0).sqrt(),
+                cog_rad: wrap_two_pi(obs.predicted[meas::COG]),
+                cog_sigma_rad: cov[(meas::COG, meas::COG)].max(0.0).sqrt(),
+                heading_rad: Some(wrap_two_pi(k.x[idx::PSI])),
+                current_mps: self
+                    .config
+                    .kinetic
+                    .estimate_current
+                    .then(|| [k.x[idx::CURRENT_NORTH], k.x[idx::CURRENT_EAST]]),
+                nis,
+                nis_dof: dof,
+                source: FaultSource::Kinetic,
+            });
+        }
+        let s = self.seed.state.as_ref()?;
+        let local = NorthEast {
+            north_m: s.x[0],
+            east_m: s.x[1],
+        };
+        let (nis, dof) = self
+            .seed
+            .last_report
+            .map(|r| (r.nis, r.dof))
+            .unwrap_or((0.0, 0));
+        Some(StateReport {
+            time_s,
+            position: frame.to_geodetic(local),
+            local,
+            position_sigma_m: [s.p[(0, 0)].sqrt(), s.p[(1, 1)].sqrt()],
+            sog_mps: s.x[2],
+            sog_sigma_mps: s.p[(2, 2)].sqrt(),
+            cog_rad: wrap_two_pi(s.x[3]),
+            cog_sigma_rad: s.p[(3, 3)].sqrt(),
+            heading_rad: None,
+            current_mps: None,
+            nis,
+            nis_dof: dof,
+            source: FaultSource::SeedMethod,
+        })
+    }
+
+    fn output(&self, time_s: f64, changes: Vec<StatusChange>) -> StepOutput {
+        let state = self.state_report().expect("a fix was just accepted");
+        let faults = self.fault_report(time_s);
+        let (innovation, innovation_available) =
+            match (&self.kinetic.state, self.kinetic.last_report) {
+                (Some(_), Some(r)) => (
+                    std::array::from_fn(|i| r.innovation[i]),
+                    self.kinetic.last_available,
+                ),
+                _ => match self.seed.last_report {
+                    Some(r) => {
+                        let a = self.seed.last_available;
+                        (
+                            [
+                                r.innovation[0],
+                                r.innovation[1],
+                                r.innovation[2],
+                                r.innovation[3],
+                                0.0,
+                            ],
+                            [a[0], a[1], a[2], a[3], false],
+                        )
+                    }
+                    None => ([0.0; 5], [false; 5]),
+                },
+            };
+        StepOutput {
+            state,
+            faults,
+            changes,
+            innovation,
+            innovation_available,
+        }
+    }
+
+    /// Forecast from the last fix for `horizon_s` in steps of `step_s`, with
+    /// the inputs held at their last values (the seed's derived inputs, or the
+    /// extended twin's propeller speeds).
+    pub fn forecast(&self, horizon_s: f64, step_s: f64) -> Vec<ForecastPoint> {
+        let steps = if step_s > 0.0 && horizon_s > 0.0 {
+            (horizon_s / step_s).round().clamp(0.0, 10_000.0) as usize
+        } else {
+            0
+        };
+        match (&self.kinetic.state, self.kinetic.last_input) {
+            (Some(_), Some(u)) => self.forecast_kinetic(std::iter::repeat_n((step_s, u), steps)),
+            _ => {
+                let u = self.seed.last_input;
+                self.forecast_seed(std::iter::repeat_n((step_s, u), steps))
+            }
+        }
+    }
+
+    /// Forecast of the extended twin through given propeller speeds.
+    pub fn forecast_kinetic(
+        &self,
+        inputs: impl IntoIterator<Item = (f64, ShaftSpeeds)>,
+    ) -> Vec<ForecastPoint> {
+        let (Some(frame), Some((t0, _)), Some(k)) =
+            (self.frame, self.last_fix, &self.kinetic.state)
+        else {
+            return Vec::new();
+        };
+        let model = &self.kinetic.filter.model;
+        let points = predict(model, k, &k.process_noise_density, t0, inputs);
+        points
+            .iter()
+            .map(|p: &PredictedPoint<8>| {
+                let obs = model.observe(&p.x);
+                let local = NorthEast {
+                    north_m: p.x[idx::NORTH],
+                    east_m: p.x[idx::EAST],
+                };
+                ForecastPoint {
+                    time_s: p.time_s,
+                    position: frame.to_geodetic(local),
+                    local,
+                    position_sigma_m: [p.sigma(idx::NORTH), p.sigma(idx::EAST)],
+                    sog_mps: obs.predicted[meas::SOG],
+                    cog_rad: wrap_two_pi(obs.predicted[meas::COG]),
+                }
+            })
+            .collect()
+    }
+
+    /// Forecast of the seed's model through given inputs.
+    pub fn forecast_seed(
+        &self,
+        inputs: impl IntoIterator<Item = (f64, KinematicInput)>,
+    ) -> Vec<ForecastPoint> {
+        let (Some(frame), Some((t0, _)), Some(s)) = (self.frame, self.last_fix, &self.seed.state)
+        else {
+            return Vec::new();
+        };
+        predict(
+            &self.seed.filter.model,
+            s,
+            &s.process_noise_density,
+            t0,
+            inputs,
+        )
+        .iter()
+        .map(|p| {
+            let local = NorthEast {
+                north_m: p.x[0],
+                east_m: p.x[1],
+            };
+            ForecastPoint {
+                time_s: p.time_s,
+                position: frame.to_geodetic(local),
+                local,
+                position_sigma_m: [p.sigma(0), p.sigma(1)],
+                sog_mps: p.x[2],
+                cog_rad: wrap_two_pi(p.x[3]),
+            }
+        })
+        .collect()
+    }
+
+    /// The seed method's last derived input.
+    pub fn seed_last_input(&self) -> KinematicInput {
+        self.seed.last_input
+    }
+}
