@@ -179,13 +179,24 @@ pub struct KineticConfig {
 }
 
 impl KineticConfig {
-    /// The Otter with 5 Hz GNSS (0.3 m, 0.05 m/s) and heading, if any, at 0.5 deg.
+    /// The Otter with 5 Hz GNSS (0.3 m, 0.05 m/s) and heading, if any, at
+    /// 0.5 deg, in sheltered harbour water.
+    ///
+    /// Process noise: the kinematics are exact (tiny noise on position and
+    /// heading); the velocities take the random forces of harbour water as
+    /// white accelerations of density `q = M^-1 diag(2 F^2 T) M^-T` for gusts
+    /// and chop of 3 N surge, 4 N sway, 0.5 N m yaw with 2 s correlation (the
+    /// simulator's default disturbance, `twin_sim::DisturbanceSpec`); the
+    /// current drifts slowly.
     pub fn otter() -> Self {
-        let q = SVector::<f64, 8>::from_column_slice(&[
-            1e-4, 1e-4, 1e-5, // position and heading: the kinematics are exact
-            2e-3, 2e-3, 1e-4, // unmodelled forces on surge, sway, yaw
-            1e-6, 1e-6, // the current drifts slowly
-        ]);
+        let mut q = SMatrix::<f64, 8, 8>::from_diagonal(&SVector::<f64, 8>::from_column_slice(&[
+            1e-6, 1e-6, 1e-7, // position and heading
+            4.9e-3, 2.5e-3, 7.8e-4, // surge, sway, yaw accelerations
+            1e-6, 1e-6, // current
+        ]));
+        // The sway-yaw mass coupling turns a sway force into a yaw acceleration too.
+        q[(idx::V, idx::R)] = -7.7e-4;
+        q[(idx::R, idx::V)] = -7.7e-4;
         let r = SVector::<f64, 5>::from_column_slice(&[
             0.3 * 0.3,
             0.3 * 0.3,
@@ -196,7 +207,7 @@ impl KineticConfig {
         Self {
             params: OtterParams::default(),
             filter: AekfConfig {
-                process_noise_density: SMatrix::from_diagonal(&q),
+                process_noise_density: q,
                 measurement_noise: SMatrix::from_diagonal(&r),
                 forgetting_time_constant_s: 60.0,
                 initial_fault_covariance: SMatrix::identity() * 0.1,
@@ -272,6 +283,27 @@ pub struct FaultReport {
     pub status: ThrusterStatus,
     /// The seed method's input faults `[theta_a, theta_r]`.
     pub seed_input_faults: Vector2<f64>,
+    /// Covariance of the two loss estimates (`[[port, cross], [cross,
+    /// starboard]]`), NaN for the seed's method. On a straight run the two
+    /// losses are strongly correlated: their ratio is known far better than
+    /// either.
+    pub loss_covariance: [[f64; 2]; 2],
+}
+
+impl FaultReport {
+    /// The ratio of the port to the starboard propeller's effectiveness,
+    /// `(1 - loss_port) / (1 - loss_stb)`, and its standard deviation from the
+    /// covariance (first order). What a straight run can tell.
+    pub fn effectiveness_ratio(&self) -> (f64, f64) {
+        let (lp, ls) = (self.thrusters[0].loss, self.thrusters[1].loss);
+        let ratio = (1.0 - lp) / (1.0 - ls);
+        let grad = [-1.0 / (1.0 - ls), (1.0 - lp) / (1.0 - ls).powi(2)];
+        let c = self.loss_covariance;
+        let var = grad[0] * grad[0] * c[0][0]
+            + 2.0 * grad[0] * grad[1] * c[0][1]
+            + grad[1] * grad[1] * c[1][1];
+        (ratio, var.max(0.0).sqrt())
+    }
 }
 
 /// The state estimate at one time, in the frames users read.
@@ -921,6 +953,10 @@ impl VesselTwin {
             .state
             .map(|s| s.theta)
             .unwrap_or_else(SVector::zeros);
+        let loss_covariance = match &self.kinetic.state {
+            Some(k) => [[k.s[(0, 0)], k.s[(0, 1)]], [k.s[(1, 0)], k.s[(1, 1)]]],
+            None => [[f64::NAN; 2]; 2],
+        };
         let (source, thrusters) = match &self.kinetic.state {
             Some(k) => {
                 let sigma = k.fault_sigma();
@@ -961,6 +997,7 @@ impl VesselTwin {
             },
             thrusters,
             seed_input_faults: seed_theta,
+            loss_covariance,
         }
     }
 

@@ -13,7 +13,7 @@
 //! velocity `nu_c = [u_c, v_c, 0]` and `nu_r = nu - nu_c`:
 //!
 //! ```text
-//! M nu_r' = tau_prop + tau_wind - C_RB(nu_r) nu_r - C_A(nu_r) nu_r + tau_damp(nu_r) + tau_crossflow(nu_r)
+//! M nu_r' = tau_prop + tau_wind + tau_d - C_RB(nu_r) nu_r - C_A(nu_r) nu_r + tau_damp(nu_r) + tau_crossflow(nu_r)
 //! nu'     = nu_r' + nu_c',   nu_c' = R(psi)^T a_c + [r v_c, -r u_c, 0]
 //! eta'    = R(psi) nu        (north, east, psi)
 //! n_i'    = (sat(n_cmd_i) - n_i) / T_n
@@ -35,6 +35,8 @@
 //! - Cross-flow drag by strip theory over the hull length, with Hoerner's 2D
 //!   drag coefficient of one pontoon section (as `otter.m` passes one pontoon).
 //! - `tau_prop = [T_p + T_s, 0, b (T_p - T_s)]`, `T_i = (1 - loss_i) k(n_i) n_i |n_i|`.
+//! - `tau_wind` is the air load ([`crate::environment`]), `tau_d` the random
+//!   disturbance ([`crate::disturbance`]), held constant over a step.
 //!
 //! The Munk moment makes the Otter directionally unstable in open loop (a
 //! straight course diverges with a time constant of a few seconds at trial
@@ -204,6 +206,16 @@ impl OtterParams {
         self.thrust_n(self.shaft_min_radps)
     }
 
+    /// The diagonal of the mass matrix `[M11 kg, M22 kg, M33 kg m^2]`
+    /// (rigid body plus added mass): `[85.5, 162.5, 42.65]` by default.
+    pub fn mass_matrix_diagonal(&self) -> [f64; 3] {
+        [
+            self.mass_matrix[(0, 0)],
+            self.mass_matrix[(1, 1)],
+            self.mass_matrix[(2, 2)],
+        ]
+    }
+
     /// Hoerner's 2D cross-flow drag coefficient of one pontoon section.
     pub fn crossflow_drag_coefficient(&self) -> f64 {
         hoerner_cd_2d(self.pontoon_beam_m / (2.0 * self.draft_m))
@@ -270,6 +282,8 @@ pub(crate) struct Surroundings {
     pub current_accel_ned_mps2: [f64; 2],
     /// Air force and moment on the hull in the body frame (N, N, N m).
     pub wind_force: [f64; 3],
+    /// Random disturbance force and moment in the body frame (N, N, N m).
+    pub disturbance_force: [f64; 3],
 }
 
 /// The model with its derived constants (inverse mass matrix, cross-flow
@@ -394,7 +408,9 @@ impl OtterModel {
         );
 
         let shafts = [x[idx::N_PORT], x[idx::N_STB]];
-        let tau = self.propulsion(shafts, act.loss) + Vector3::from(env.wind_force);
+        let tau = self.propulsion(shafts, act.loss)
+            + Vector3::from(env.wind_force)
+            + Vector3::from(env.disturbance_force);
         let forces = tau - self.coriolis_rigid(&nu_r) - self.coriolis_added(&nu_r)
             + self.damping_force(&nu_r)
             + self.crossflow_force(&nu_r);

@@ -108,9 +108,9 @@ pub(crate) struct GnssSettings {
 }
 
 /// Streams of the seeded generator, one per sensor.
-const STREAM_GNSS: u64 = 0x9E37_79B9_7F4A_7C15;
-const STREAM_HEADING: u64 = 0xC2B2_AE3D_27D4_EB4F;
-const STREAM_PROPELLERS: u64 = 0x1656_67B1_9E37_79F9;
+pub(crate) const STREAM_GNSS: u64 = 0x9E37_79B9_7F4A_7C15;
+pub(crate) const STREAM_HEADING: u64 = 0xC2B2_AE3D_27D4_EB4F;
+pub(crate) const STREAM_PROPELLERS: u64 = 0x1656_67B1_9E37_79F9;
 
 fn stream(seed: u64, salt: u64) -> StdRng {
     StdRng::seed_from_u64(seed ^ salt)

@@ -6,14 +6,18 @@
 //! control loop, the truth series and every sensor, plus the onsets of losses
 //! and manual commands), so every sample is taken at its true time whatever
 //! the integration step: between two instants the integrator takes equal
-//! steps no longer than `step_s`. Over one step the commanded shaft speeds and
-//! the losses are held; the current and the wind are evaluated at each RK4
-//! stage.
+//! steps no longer than `step_s`. Over one step the commanded shaft speeds,
+//! the losses and the random disturbance are held; the current and the wind
+//! are evaluated at each RK4 stage. The disturbance is updated on a clock of
+//! its own (every twentieth of its correlation time, see
+//! [`crate::disturbance`]) whose ticks are scheduled instants, so its
+//! realisation depends neither on the step nor on the sensors' rates.
 
 use twin_core::geodesy::{LatLon, NorthEast, course_of, wrap_two_pi};
 use twin_core::sample::{GnssFix, PropellerSpeeds};
 
 use crate::control::{HeadingAutopilot, SpeedController, allocate};
+use crate::disturbance::DisturbanceProcess;
 use crate::guidance::{LineOfSight, WaypointPass};
 use crate::otter::{Actuation, OtterModel, StateVector, Surroundings, idx, rk4_step};
 use crate::scenario::{Drive, Plan, Scenario, ScenarioError};
@@ -68,6 +72,10 @@ pub struct TruthSample {
     pub loss: [f64; 2],
     /// Water current (north, east), m/s.
     pub current_ned_mps: [f64; 2],
+    /// Random disturbance on the hull, body frame: surge force (N), sway
+    /// force (N), yaw moment (N m); held from this instant over the next
+    /// integration step. Zero without a `[disturbance]` section.
+    pub disturbance_force: [f64; 3],
     /// Cross-track error from the active leg, m, positive to starboard
     /// (way-point mode only).
     pub cross_track_m: Option<f64>,
@@ -242,6 +250,12 @@ pub fn run_plan(plan: &Plan) -> SimRun {
     let mut props = plan
         .propellers
         .map(|s| (PropellerSensor::new(s, plan.seed), Ticker::new(s.period_s)));
+    let mut disturbance = plan.disturbance.map(|s| {
+        (
+            DisturbanceProcess::new(s, plan.seed),
+            Ticker::new(s.update_period_s()),
+        )
+    });
 
     let mut events = Vec::new();
     let mut truth = Vec::new();
@@ -252,6 +266,13 @@ pub fn run_plan(plan: &Plan) -> SimRun {
     let mut t = 0.0_f64;
     loop {
         let body = body_motion(&x);
+
+        if let Some((process, clock)) = disturbance.as_mut()
+            && clock.fire(t)
+        {
+            process.advance_to(t);
+        }
+        let disturbance_force = disturbance.as_ref().map_or([0.0; 3], |(p, _)| p.value());
 
         if control_clock.fire(t)
             && let Some(ap) = autopilot.as_mut()
@@ -288,8 +309,11 @@ pub fn run_plan(plan: &Plan) -> SimRun {
                 &model,
                 &x,
                 t,
-                n_cmd,
-                loss_at(t),
+                &Actuation {
+                    n_cmd_radps: n_cmd,
+                    loss: loss_at(t),
+                },
+                disturbance_force,
                 autopilot.as_ref().map(|ap| &ap.los),
             ));
         }
@@ -334,6 +358,7 @@ pub fn run_plan(plan: &Plan) -> SimRun {
             gnss.as_ref().map(|(_, c)| c.due_s()),
             heading.as_ref().map(|(_, c)| c.due_s()),
             props.as_ref().map(|(_, c)| c.due_s()),
+            disturbance.as_ref().map(|(_, c)| c.due_s()),
             breakpoints
                 .iter()
                 .copied()
@@ -363,6 +388,7 @@ pub fn run_plan(plan: &Plan) -> SimRun {
                         current_ned_mps: current,
                         current_accel_ned_mps2: accel,
                         wind_force,
+                        disturbance_force,
                     };
                     model.derivative(xs, &act, &env)
                 },
@@ -401,8 +427,8 @@ fn truth_sample(
     model: &OtterModel,
     x: &StateVector,
     t_s: f64,
-    n_cmd: [f64; 2],
-    loss: [f64; 2],
+    act: &Actuation,
+    disturbance_force: [f64; 3],
     los: Option<&LineOfSight>,
 ) -> TruthSample {
     let body = body_motion(x);
@@ -430,10 +456,11 @@ fn truth_sample(
         u_water_mps: body.u_mps - nu_c.x,
         v_water_mps: body.v_mps - nu_c.y,
         shaft_radps: shafts,
-        shaft_cmd_radps: n_cmd,
-        thrust_n: model.effective_thrusts_n(shafts, loss),
-        loss,
+        shaft_cmd_radps: act.n_cmd_radps,
+        thrust_n: model.effective_thrusts_n(shafts, act.loss),
+        loss: act.loss,
         current_ned_mps: current,
+        disturbance_force,
         cross_track_m: los.map(|l| l.cross_track_m(body.north_m, body.east_m)),
         leg: los.map(LineOfSight::leg),
     }

@@ -5,13 +5,18 @@
 
 mod common;
 
-use common::{mean, shipped, truth_at, truth_mean};
+use common::{calm, mean, shipped, truth_at, truth_mean};
 use twin_sim::{InitialSpec, Scenario, Waypoint, simulate};
 
 #[test]
 fn controller_needs_more_port_rpm_for_a_port_loss() {
-    let healthy = simulate(&shipped("straight_original-original")).unwrap();
-    let broken = simulate(&shipped("straight_new-broken")).unwrap();
+    let calm_water = |stem: &str| {
+        let mut s = shipped(stem);
+        calm(&mut s);
+        simulate(&s).unwrap()
+    };
+    let healthy = calm_water("straight_original-original");
+    let broken = calm_water("straight_new-broken");
     let ratio = |run: &twin_sim::SimRun| {
         let port: Vec<f64> = run
             .measured_propellers()
@@ -37,12 +42,25 @@ fn controller_needs_more_port_rpm_for_a_port_loss() {
     // The speed is held all the same.
     let sog = truth_mean(&broken, 20.0, |t| t.sog_mps);
     assert!((sog - 1.5).abs() < 0.005, "{sog}");
+    // In the shipped files' harbour disturbance the balance holds on average
+    // (the random yaw moment shifts the 40 s mean a little).
+    let disturbed = simulate(&shipped("straight_new-broken")).unwrap();
+    assert!(
+        (ratio(&disturbed) - expected).abs() < 0.02,
+        "{}",
+        ratio(&disturbed)
+    );
+    let sog = truth_mean(&disturbed, 20.0, |t| t.sog_mps);
+    assert!((sog - 1.5).abs() < 0.02, "{sog}");
 }
 
 #[test]
 fn straight_line_cross_track_error_settles() {
-    for port_loss in [0.0, 0.18] {
+    for (port_loss, disturbed) in [(0.0, false), (0.18, false), (0.0, true), (0.18, true)] {
         let mut s = shipped("straight_new-broken");
+        if !disturbed {
+            calm(&mut s);
+        }
         s.propellers.port.loss = port_loss;
         // Start 10 m to starboard of the line (bearing 060) heading 030.
         s.initial = Some(InitialSpec {
@@ -60,16 +78,25 @@ fn straight_line_cross_track_error_settles() {
                 .map(|t| t.cross_track_m.unwrap().abs())
                 .fold(0.0, f64::max)
         };
-        assert!(
-            worst_after(30.0) < 0.05,
-            "loss {port_loss}: {}",
-            worst_after(30.0)
-        );
-        assert!(
-            worst_after(45.0) < 0.01,
-            "loss {port_loss}: {}",
-            worst_after(45.0)
-        );
+        if disturbed {
+            // The harbour disturbance keeps it wandering by decimetres.
+            assert!(
+                worst_after(30.0) < 0.3,
+                "loss {port_loss}, disturbed: {}",
+                worst_after(30.0)
+            );
+        } else {
+            assert!(
+                worst_after(30.0) < 0.05,
+                "loss {port_loss}: {}",
+                worst_after(30.0)
+            );
+            assert!(
+                worst_after(45.0) < 0.01,
+                "loss {port_loss}: {}",
+                worst_after(45.0)
+            );
+        }
         // Overshoot on the way in stays small.
         assert!(
             worst_after(15.0) < 1.0,

@@ -6,7 +6,7 @@ mod common;
 
 use common::{scenario_dir, shipped};
 use twin_core::geodesy::NorthEast;
-use twin_sim::{Scenario, ScenarioError, Waypoint, simulate};
+use twin_sim::{DisturbanceSpec, Scenario, ScenarioError, Waypoint, simulate};
 
 #[test]
 fn shipped_scenarios_are_the_seed_trial_matrix() {
@@ -38,6 +38,8 @@ fn shipped_scenarios_are_the_seed_trial_matrix() {
         assert_eq!(s.propellers.port.loss, port_loss, "{stem}");
         assert_eq!(s.propellers.starboard.loss, 0.0);
         assert_eq!(s.sensors.gnss.rate_hz, 5.0);
+        // Harbour water, spelled out in every file.
+        assert_eq!(s.disturbance, Some(DisturbanceSpec::default()), "{stem}");
     }
 }
 
@@ -62,6 +64,10 @@ fn a_minimal_scenario_takes_every_default() {
     assert_eq!(s.step_s, 0.01);
     assert_eq!(s.sensors.gnss.position_sigma_m, 0.3);
     assert!(!s.sensors.heading.enabled);
+    // No section, no disturbance; an empty section, the harbour default.
+    assert_eq!(s.disturbance, None);
+    let empty = Scenario::from_toml_str(&format!("{MINIMAL}\n[disturbance]\n")).unwrap();
+    assert_eq!(empty.disturbance, Some(DisturbanceSpec::default()));
     let run = simulate(&s).unwrap();
     assert_eq!(run.start_unix_s, 1_653_040_800.0);
 }
@@ -77,6 +83,10 @@ fn toml_errors_name_the_key() {
         .unwrap_err()
         .to_string();
     assert!(msg.contains("duration_s"), "{msg}");
+
+    let typo = format!("{MINIMAL}\n[disturbance]\nsurge_sigma_n = 3.0\n");
+    let msg = Scenario::from_toml_str(&typo).unwrap_err().to_string();
+    assert!(msg.contains("surge_sigma_n"), "{msg}");
 
     let missing = MINIMAL.replace("duration_s = 10.0", "");
     let msg = Scenario::from_toml_str(&missing).unwrap_err().to_string();
@@ -99,6 +109,26 @@ fn validation_errors_name_the_key() {
         (
             "[manual]\ncommands = [{ time_s = 0.0, port_rpm = 1.0, starboard_rpm = 1.0 }]",
             "manual",
+        ),
+        (
+            "[disturbance]\nsurge_force_sigma_n = -1.0",
+            "disturbance.surge_force_sigma_n",
+        ),
+        (
+            "[disturbance]\nsway_force_sigma_n = inf",
+            "disturbance.sway_force_sigma_n",
+        ),
+        (
+            "[disturbance]\nyaw_moment_sigma_nm = nan",
+            "disturbance.yaw_moment_sigma_nm",
+        ),
+        (
+            "[disturbance]\ncorrelation_s = 0.0",
+            "disturbance.correlation_s",
+        ),
+        (
+            "[disturbance]\ncorrelation_s = 0.05",
+            "disturbance.correlation_s",
         ),
     ];
     for (extra, key) in cases {
@@ -188,5 +218,6 @@ fn the_readme_example_is_a_valid_scenario_with_the_documented_defaults() {
         (minimal.seed, minimal.step_s, minimal.origin)
     );
     assert_eq!(s.start_time, minimal.start_time);
+    assert_eq!(s.disturbance, Some(DisturbanceSpec::default()));
     assert!(simulate(&s).is_ok());
 }

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{lag1_autocorrelation, local, mean, shipped, silence, std_dev, truth_at};
+use common::{calm, lag1_autocorrelation, local, mean, shipped, silence, std_dev, truth_at};
 use twin_core::geodesy::{angle_diff, wrap_pi};
 use twin_sim::{LeverArm, ManualCommand, Scenario, SensorEvent, SimRun, simulate};
 
@@ -34,14 +34,27 @@ fn same_seed_same_output_other_seed_other_noise() {
     let mut other = s.clone();
     other.seed += 1;
     let c = simulate(&other).unwrap();
-    // The noise differs; the truth does not (the autopilot sees the truth).
-    assert_eq!(a.truth, c.truth);
     let differing = a
         .gnss_fixes()
         .zip(c.gnss_fixes())
         .filter(|(x, y)| x.position != y.position)
         .count();
     assert_eq!(differing, a.gnss_fixes().count());
+    // The disturbance is seeded too, so the truth differs...
+    assert!(
+        a.truth
+            .iter()
+            .zip(&c.truth)
+            .all(|(x, y)| x.disturbance_force != y.disturbance_force)
+    );
+    // ...but in calm water it does not (the autopilot sees the truth).
+    let (mut calm_a, mut calm_c) = (s.clone(), other.clone());
+    calm(&mut calm_a);
+    calm(&mut calm_c);
+    assert_eq!(
+        simulate(&calm_a).unwrap().truth,
+        simulate(&calm_c).unwrap().truth
+    );
     // Switching the heading sensor on leaves the GNSS noise as it was.
     let mut with_heading = s.clone();
     with_heading.sensors.heading.enabled = true;

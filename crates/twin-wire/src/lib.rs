@@ -1,1 +1,37 @@
-//! `twin-wire`: the contract (messages, keys) and the log formats.
+//! `twin-wire`: the contract of the USV twin (messages, keys) and the log
+//! formats it reads and writes.
+//!
+//! # Layout
+//! - [`keys`]: vessel ids, topics, key expressions under a prefix, parsing a
+//!   received key.
+//! - [`time`]: RFC 3339 and NMEA date/time fields to and from epoch seconds.
+//! - [`messages`]: the JSON input payloads (GNSS fix, actuators), their
+//!   validation into `twin_core` samples, and their encoders.
+//! - [`measurement`]: [`Record`], the typed, time-stamped SI measurement
+//!   every log reader emits.
+//! - [`read`]: streaming readers of NMEA 0183, canboat NMEA 2000 text and
+//!   JSON lines, picked by content, with typed rejections and counts.
+//! - [`mod@assemble`]: records to the estimator's inputs (fixes with course,
+//!   speed and heading; paired propeller speeds), choosing sources.
+//! - [`mod@write`]: NMEA 0183 sentence writers and the JSON-lines writer.
+//!
+//! # Invariants
+//! No parser panics on any input: every refusal is a typed value. Readers
+//! stream in constant memory (one line and its few records at a time). All
+//! numbers that leave this crate are SI (m, m/s, rad, rad/s, N) or degrees
+//! of latitude/longitude, with the unit in the name. Data flows wire -> core
+//! -> wire: `twin-core` never sees a serde type.
+
+pub mod assemble;
+pub mod keys;
+pub mod measurement;
+pub mod messages;
+pub mod read;
+pub mod time;
+pub mod write;
+
+pub use assemble::{Assembled, AssemblerConfig, FixAssembler, SourceChoice, assemble};
+pub use keys::{KeyError, KeySpace, Topic, VesselId};
+pub use measurement::{Measurement, MeasurementKind, Record, Source};
+pub use messages::{ActuatorCommand, MessageError, decode_actuators, decode_gnss};
+pub use read::{LogFormat, LogReader, ReadOptions, ReadStats, RejectKind, RejectReason, Rejection};

@@ -27,6 +27,11 @@ pub fn silence(s: &mut Scenario) {
     s.sensors.propellers.sigma_rpm = 0.0;
 }
 
+/// Removes the random disturbance: calm water.
+pub fn calm(s: &mut Scenario) {
+    s.disturbance = None;
+}
+
 /// A straight way-point path north from the origin.
 pub fn northward(duration_s: f64, speed_mps: f64, length_m: f64) -> Scenario {
     Scenario::waypoint_mode(
