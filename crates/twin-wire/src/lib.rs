@@ -7,6 +7,8 @@
 //! - [`time`]: RFC 3339 and NMEA date/time fields to and from epoch seconds.
 //! - [`messages`]: the JSON input payloads (GNSS fix, actuators), their
 //!   validation into `twin_core` samples, and their encoders.
+//! - [`outputs`]: the twin's output payloads (state, fault, prediction,
+//!   alarm, stats).
 //! - [`measurement`]: [`Record`], the typed, time-stamped SI measurement
 //!   every log reader emits.
 //! - [`read`]: streaming readers of NMEA 0183, canboat NMEA 2000 text and
@@ -26,6 +28,7 @@ pub mod assemble;
 pub mod keys;
 pub mod measurement;
 pub mod messages;
+pub mod outputs;
 pub mod read;
 pub mod time;
 pub mod write;

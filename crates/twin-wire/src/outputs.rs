@@ -1,0 +1,408 @@
+//! The twin's output payloads, as published by the daemon on
+//! `{prefix}/{vessel}/twin/{state,fault,prediction,alarm,stats}` and as
+//! printed by the offline tools. JSON, with times in RFC 3339 UTC and units
+//! in every field name. Built from `twin_core`'s plain reports; the core
+//! never sees these types.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+use twin_core::decision::{StatusChange, ThrusterStatus};
+use twin_core::twin::{FaultReport, FaultSource, ForecastPoint, StateReport, ThrusterEstimate};
+
+use crate::time::format_rfc3339;
+
+fn time_string(time_s: f64) -> String {
+    format_rfc3339(time_s).unwrap_or_else(|_| "invalid".to_string())
+}
+
+fn finite(v: f64) -> Option<f64> {
+    v.is_finite().then_some(v)
+}
+
+/// Which estimator produced an output.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ModelName {
+    /// The extended twin (propeller speeds, kinetic model).
+    Kinetic,
+    /// The seed's method (GNSS-derived inputs, kinematic model).
+    SeedMethod,
+}
+
+impl From<FaultSource> for ModelName {
+    fn from(s: FaultSource) -> Self {
+        match s {
+            FaultSource::Kinetic => ModelName::Kinetic,
+            FaultSource::SeedMethod => ModelName::SeedMethod,
+        }
+    }
+}
+
+/// Standard deviations of the state estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StateSigma {
+    /// North, m.
+    pub north_m: f64,
+    /// East, m.
+    pub east_m: f64,
+    /// Speed over ground, m/s.
+    pub sog_mps: f64,
+    /// Course over ground, rad.
+    pub cog_rad: f64,
+}
+
+/// A water current estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CurrentMessage {
+    /// North component, m/s.
+    pub north_mps: f64,
+    /// East component, m/s.
+    pub east_mps: f64,
+    /// Speed, m/s.
+    pub speed_mps: f64,
+    /// Direction the water flows toward, degrees true.
+    pub toward_deg: f64,
+}
+
+/// `twin/state`: the state estimate.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StateMessage {
+    /// Vessel id.
+    pub vessel: String,
+    /// Time of the estimate (the last fix), RFC 3339.
+    pub time: String,
+    /// Latitude, degrees.
+    pub lat_deg: f64,
+    /// Longitude, degrees.
+    pub lon_deg: f64,
+    /// North of the twin's local origin, m.
+    pub north_m: f64,
+    /// East of the twin's local origin, m.
+    pub east_m: f64,
+    /// Speed over ground, m/s.
+    pub sog_mps: f64,
+    /// Course over ground, rad in [0, 2 pi).
+    pub cog_rad: f64,
+    /// Heading, rad, where the estimator has it.
+    pub heading_rad: Option<f64>,
+    /// Standard deviations.
+    pub sigma: StateSigma,
+    /// Normalised innovation squared of the last update.
+    pub nis: f64,
+    /// Its degrees of freedom.
+    pub nis_dof: usize,
+    /// The water current, where estimated.
+    pub current: Option<CurrentMessage>,
+    /// The estimator.
+    pub model: ModelName,
+    /// True when no fix arrived for longer than the daemon's stale limit:
+    /// the state is a prediction from the last fix.
+    pub stale: bool,
+    /// True when the inputs were replayed from a log.
+    pub replay: bool,
+}
+
+impl StateMessage {
+    /// From the core's report.
+    pub fn new(vessel: &str, s: &StateReport, stale: bool, replay: bool) -> Self {
+        Self {
+            vessel: vessel.to_string(),
+            time: time_string(s.time_s),
+            lat_deg: s.position.lat_deg,
+            lon_deg: s.position.lon_deg,
+            north_m: s.local.north_m,
+            east_m: s.local.east_m,
+            sog_mps: s.sog_mps,
+            cog_rad: s.cog_rad,
+            heading_rad: s.heading_rad,
+            sigma: StateSigma {
+                north_m: s.position_sigma_m[0],
+                east_m: s.position_sigma_m[1],
+                sog_mps: s.sog_sigma_mps,
+                cog_rad: s.cog_sigma_rad,
+            },
+            nis: s.nis,
+            nis_dof: s.nis_dof,
+            current: s.current_mps.map(|c| CurrentMessage {
+                north_mps: c[0],
+                east_mps: c[1],
+                speed_mps: c[0].hypot(c[1]),
+                toward_deg: twin_core::geodesy::rad_to_compass_deg(c[1].atan2(c[0])),
+            }),
+            model: s.source.into(),
+            stale,
+            replay,
+        }
+    }
+}
+
+/// One thruster in `twin/fault`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ThrusterMessage {
+    /// Estimated loss of effectiveness, clamped to [0, 1] (null when unknown).
+    pub loss: Option<f64>,
+    /// Its standard deviation (null for the seed's method, which has none).
+    pub sigma: Option<f64>,
+    /// The raw estimate before clamping.
+    pub loss_raw: Option<f64>,
+    /// Whether the recent data can tell this thruster's loss.
+    pub excited: bool,
+    /// `not_excited`, `nominal`, `suspect` or `fault`.
+    pub status: ThrusterStatusName,
+    /// Onset of the current suspect/fault episode, RFC 3339.
+    pub onset: Option<String>,
+}
+
+/// A thruster status as written in payloads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ThrusterStatusName {
+    /// The data have not yet been able to tell.
+    NotExcited,
+    /// No loss.
+    Nominal,
+    /// A loss beyond the suspect level.
+    Suspect,
+    /// A confirmed loss.
+    Fault,
+}
+
+impl From<ThrusterStatus> for ThrusterStatusName {
+    fn from(s: ThrusterStatus) -> Self {
+        match s {
+            ThrusterStatus::NotExcited => ThrusterStatusName::NotExcited,
+            ThrusterStatus::Nominal => ThrusterStatusName::Nominal,
+            ThrusterStatus::Suspect => ThrusterStatusName::Suspect,
+            ThrusterStatus::Fault => ThrusterStatusName::Fault,
+        }
+    }
+}
+
+/// Both thrusters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Thrusters {
+    /// The port thruster.
+    pub port: ThrusterMessage,
+    /// The starboard thruster.
+    pub starboard: ThrusterMessage,
+}
+
+/// A value with its standard deviation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ValueSigma {
+    /// The value.
+    pub value: f64,
+    /// Its standard deviation.
+    pub sigma: f64,
+}
+
+/// `twin/fault`: the fault picture.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FaultMessage {
+    /// Vessel id.
+    pub vessel: String,
+    /// Time, RFC 3339.
+    pub time: String,
+    /// Port and starboard.
+    pub thrusters: Thrusters,
+    /// The worst thruster status: `nominal`, `suspect` or `fault`
+    /// (`not_excited` until the data have told anything).
+    pub status: ThrusterStatusName,
+    /// True while both thrusters' losses can be told from recent data.
+    pub excited: bool,
+    /// Onset of the earliest current episode, RFC 3339.
+    pub onset: Option<String>,
+    /// The estimator.
+    pub model: ModelName,
+    /// `(1 - loss_port) / (1 - loss_starboard)`: what even a straight run
+    /// can tell (extended twin only).
+    pub effectiveness_ratio: Option<ValueSigma>,
+    /// The seed's method's input faults `[a, r]` (for comparison).
+    pub seed_input_faults: [f64; 2],
+    /// True when the inputs were replayed from a log.
+    pub replay: bool,
+}
+
+fn thruster(t: &ThrusterEstimate) -> ThrusterMessage {
+    ThrusterMessage {
+        loss: finite(t.loss).map(|l| l.clamp(0.0, 1.0)),
+        sigma: finite(t.sigma),
+        loss_raw: finite(t.loss),
+        excited: t.excited,
+        status: t.decision.status.into(),
+        onset: t.decision.onset_time_s.map(time_string),
+    }
+}
+
+impl FaultMessage {
+    /// From the core's report.
+    pub fn new(vessel: &str, f: &FaultReport, replay: bool) -> Self {
+        let onset = f
+            .thrusters
+            .iter()
+            .filter_map(|t| t.decision.onset_time_s)
+            .reduce(f64::min)
+            .map(time_string);
+        let ratio = (f.source == FaultSource::Kinetic).then(|| {
+            let (value, sigma) = f.effectiveness_ratio();
+            ValueSigma { value, sigma }
+        });
+        Self {
+            vessel: vessel.to_string(),
+            time: time_string(f.time_s),
+            thrusters: Thrusters {
+                port: thruster(&f.thrusters[0]),
+                starboard: thruster(&f.thrusters[1]),
+            },
+            status: f.status.into(),
+            excited: f.thrusters.iter().all(|t| t.excited),
+            onset,
+            model: f.source.into(),
+            effectiveness_ratio: ratio.filter(|r| r.value.is_finite() && r.sigma.is_finite()),
+            seed_input_faults: [f.seed_input_faults[0], f.seed_input_faults[1]],
+            replay,
+        }
+    }
+}
+
+/// One point of `twin/prediction`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PredictionPoint {
+    /// Time, RFC 3339.
+    pub time: String,
+    /// Latitude, degrees.
+    pub lat_deg: f64,
+    /// Longitude, degrees.
+    pub lon_deg: f64,
+    /// North, m.
+    pub north_m: f64,
+    /// East, m.
+    pub east_m: f64,
+    /// Speed over ground, m/s.
+    pub sog_mps: f64,
+    /// Course over ground, rad.
+    pub cog_rad: f64,
+    /// Position standard deviation, m: the RMS of the north and east ones.
+    pub position_sigma_m: f64,
+    /// North standard deviation, m.
+    pub sigma_north_m: f64,
+    /// East standard deviation, m.
+    pub sigma_east_m: f64,
+}
+
+/// `twin/prediction`: the forecast.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PredictionMessage {
+    /// Vessel id.
+    pub vessel: String,
+    /// Start of the forecast (the last fix), RFC 3339.
+    pub start: String,
+    /// Horizon, s.
+    pub horizon_s: f64,
+    /// Step between points, s.
+    pub step_s: f64,
+    /// The estimator.
+    pub model: ModelName,
+    /// The points.
+    pub points: Vec<PredictionPoint>,
+    /// True when the inputs were replayed from a log.
+    pub replay: bool,
+}
+
+impl PredictionMessage {
+    /// From the core's forecast.
+    pub fn new(
+        vessel: &str,
+        start_s: f64,
+        horizon_s: f64,
+        step_s: f64,
+        model: FaultSource,
+        points: &[ForecastPoint],
+        replay: bool,
+    ) -> Self {
+        Self {
+            vessel: vessel.to_string(),
+            start: time_string(start_s),
+            horizon_s,
+            step_s,
+            model: model.into(),
+            points: points
+                .iter()
+                .map(|p| PredictionPoint {
+                    time: time_string(p.time_s),
+                    lat_deg: p.position.lat_deg,
+                    lon_deg: p.position.lon_deg,
+                    north_m: p.local.north_m,
+                    east_m: p.local.east_m,
+                    sog_mps: p.sog_mps,
+                    cog_rad: p.cog_rad,
+                    position_sigma_m: ((p.position_sigma_m[0].powi(2) + p.position_sigma_m[1].powi(2)) / 2.0)
+                        .sqrt(),
+                    sigma_north_m: p.position_sigma_m[0],
+                    sigma_east_m: p.position_sigma_m[1],
+                })
+                .collect(),
+            replay,
+        }
+    }
+}
+
+/// `twin/alarm`: a change of a thruster's status, published on change only.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AlarmMessage {
+    /// Vessel id.
+    pub vessel: String,
+    /// When the change was declared, RFC 3339.
+    pub time: String,
+    /// What changed, in words.
+    pub what: String,
+    /// `port` or `starboard`.
+    pub side: String,
+    /// Status before.
+    pub from: ThrusterStatusName,
+    /// Status now.
+    pub to: ThrusterStatusName,
+    /// When the evidence first appeared, RFC 3339.
+    pub onset: String,
+    /// How sure: the probability, under the estimate's uncertainty, that the
+    /// loss is on the side of the suspect level the change says.
+    pub confidence: f64,
+    /// True when the inputs were replayed from a log.
+    pub replay: bool,
+}
+
+impl AlarmMessage {
+    /// From a status change.
+    pub fn new(vessel: &str, c: &StatusChange, replay: bool) -> Self {
+        Self {
+            vessel: vessel.to_string(),
+            time: time_string(c.time_s),
+            what: format!("{} thruster {} -> {}", c.side.name(), c.from.name(), c.to.name()),
+            side: c.side.name().to_string(),
+            from: c.from.into(),
+            to: c.to.into(),
+            onset: time_string(c.onset_time_s),
+            confidence: c.confidence,
+            replay,
+        }
+    }
+}
+
+/// `twin/stats`: what the twin of one vessel accepted and rejected.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct StatsMessage {
+    /// Vessel id.
+    pub vessel: String,
+    /// Accepted messages per topic.
+    pub accepted: BTreeMap<String, u64>,
+    /// Rejected messages per reason.
+    pub rejected: BTreeMap<String, u64>,
+}
+
+impl StatsMessage {
+    /// Total rejections.
+    pub fn total_rejected(&self) -> u64 {
+        self.rejected.values().sum()
+    }
+}
