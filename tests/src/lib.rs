@@ -47,3 +47,143 @@ pub fn run_twin(run: &SimRun, config: TwinConfig, with_propellers: bool) -> Twin
 pub fn angle_error(a: f64, b: f64) -> f64 {
     wrap_pi(a - b)
 }
+
+/// In-process Zenoh for end-to-end tests: loopback only, no multicast
+/// scouting, peers connected explicitly.
+pub mod net {
+    use std::net::TcpListener;
+
+    /// A free TCP port on loopback (bound, read, released: a tiny race that
+    /// tests accept).
+    pub fn free_port() -> u16 {
+        TcpListener::bind("127.0.0.1:0")
+            .and_then(|l| l.local_addr())
+            .map(|a| a.port())
+            .expect("a free port on loopback")
+    }
+
+    /// A Zenoh configuration in `mode` listening on and connecting to the
+    /// given loopback ports, with multicast scouting off.
+    pub fn config(mode: &str, listen: &[u16], connect: &[u16]) -> zenoh::Config {
+        let mut c = zenoh::Config::default();
+        let ends = |ports: &[u16]| {
+            let v: Vec<String> = ports
+                .iter()
+                .map(|p| format!("\"tcp/127.0.0.1:{p}\""))
+                .collect();
+            format!("[{}]", v.join(","))
+        };
+        c.insert_json5("mode", &format!("\"{mode}\""))
+            .expect("mode");
+        c.insert_json5("listen/endpoints", &ends(listen))
+            .expect("listen");
+        c.insert_json5("connect/endpoints", &ends(connect))
+            .expect("connect");
+        c.insert_json5("scouting/multicast/enabled", "false")
+            .expect("scouting");
+        c.insert_json5("scouting/gossip/enabled", "false")
+            .expect("gossip");
+        c
+    }
+}
+
+/// A simulated trial as it goes on the wire, and the offline path over it.
+pub mod wire {
+    use std::time::{Duration, Instant};
+
+    use twin_core::twin::{TwinConfig, VesselTwin};
+    use twin_sim::{Scenario, SensorEvent, SimRun};
+    use twin_wire::messages::{
+        ActuatorCommand, decode_actuators, decode_gnss, encode_actuators, encode_gnss,
+    };
+
+    /// Payloads in time order, each with its topic (`gnss` or `actuators`).
+    pub type Messages = Vec<(&'static str, Vec<u8>)>;
+
+    /// Simulates a scenario file of `config/scenarios/` with the port loss
+    /// and noise seed set.
+    pub fn simulate(file: &str, port_loss: f64, seed: u64) -> SimRun {
+        let path = format!(
+            "{}/../config/scenarios/{file}.toml",
+            env!("CARGO_MANIFEST_DIR")
+        );
+        let mut sc =
+            Scenario::from_toml_str(&std::fs::read_to_string(path).expect("scenario file"))
+                .expect("valid scenario");
+        sc.propellers.port.loss = port_loss;
+        sc.seed = seed;
+        twin_sim::simulate(&sc).expect("simulation")
+    }
+
+    /// The trial's GNSS fixes and measured shaft speeds as contract payloads.
+    pub fn messages(run: &SimRun) -> Messages {
+        run.events
+            .iter()
+            .filter_map(|e| match e {
+                SensorEvent::Gnss(f) => {
+                    Some(("gnss", encode_gnss(f, true).expect("encodable fix")))
+                }
+                SensorEvent::PropellerMeasured(p) => Some((
+                    "actuators",
+                    encode_actuators(&ActuatorCommand::Speeds(*p), true).expect("encodable speeds"),
+                )),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// The offline path over the same payloads: decode and feed a twin, as
+    /// `twin analyze` does.
+    pub fn offline(msgs: &[(&'static str, Vec<u8>)]) -> VesselTwin {
+        let mut twin = VesselTwin::new(TwinConfig::default()).expect("valid config");
+        for (topic, bytes) in msgs {
+            if *topic == "gnss" {
+                if let Ok(d) = decode_gnss(bytes) {
+                    let _ = twin.on_gnss(&d.value);
+                }
+            } else if let Ok(d) = decode_actuators(bytes)
+                && let ActuatorCommand::Speeds(s) = d.value
+            {
+                let _ = twin.on_propellers(&s);
+            }
+        }
+        twin
+    }
+
+    /// Waits until a publisher has a matching subscriber (so nothing is
+    /// published into the void), panicking after `within`.
+    pub async fn wait_matching(p: &zenoh::pubsub::Publisher<'_>, within: Duration) {
+        let deadline = Instant::now() + within;
+        while !p
+            .matching_status()
+            .await
+            .map(|m| m.matching())
+            .unwrap_or(false)
+        {
+            assert!(
+                Instant::now() < deadline,
+                "no subscriber for {} within {within:?}",
+                p.key_expr()
+            );
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    }
+
+    /// Publishes a vessel's messages in order through `session`, once the
+    /// daemon's subscription is visible.
+    pub async fn publish(session: &zenoh::Session, vessel: &str, msgs: &[(&'static str, Vec<u8>)]) {
+        let declare = |topic: &str| {
+            session
+                .declare_publisher(format!("asv/{vessel}/{topic}"))
+                .congestion_control(zenoh::qos::CongestionControl::Block)
+        };
+        let gnss = declare("gnss").await.expect("publisher");
+        let act = declare("actuators").await.expect("publisher");
+        wait_matching(&gnss, Duration::from_secs(20)).await;
+        wait_matching(&act, Duration::from_secs(20)).await;
+        for (topic, bytes) in msgs {
+            let p = if *topic == "gnss" { &gnss } else { &act };
+            p.put(bytes.clone()).await.expect("put");
+        }
+    }
+}

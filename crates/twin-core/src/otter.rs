@@ -98,6 +98,18 @@ impl OtterParams {
         k * n * n.abs()
     }
 
+    /// The shaft speed that gives thrust `thrust_n` (the inverse of
+    /// [`Self::thrust_n`] within the shaft's limits), rad/s: how a thrust
+    /// command drives a twin whose input is shaft speed.
+    pub fn shaft_speed_for_thrust_radps(&self, thrust_n: f64) -> f64 {
+        let n = if thrust_n >= 0.0 {
+            (thrust_n / self.thrust_coeff_ahead).sqrt()
+        } else {
+            -(-thrust_n / self.thrust_coeff_astern).sqrt()
+        };
+        n.clamp(self.min_shaft_speed_radps, self.max_shaft_speed_radps)
+    }
+
     /// Splits a surge force and a yaw moment between the two propellers:
     /// `X = T_port + T_stb`, `N = b (T_port - T_stb)` (the port propeller
     /// sits at `y = -b`, and positive yaw turns the bow to starboard), so
@@ -200,6 +212,9 @@ mod tests {
         let top = 2.0 * p.thrust_n(p.max_shaft_speed_radps) / -p.linear_damping[0];
         assert!((top - 3.09).abs() < 0.02, "{top}");
         assert!((p.added_mass[2] + 26.85).abs() < 0.01);
+        for n in [-90.0, -10.0, 0.0, 35.0, 100.0] {
+            assert!((p.shaft_speed_for_thrust_radps(p.thrust_n(n)) - n).abs() < 1e-9);
+        }
     }
 
     #[test]

@@ -138,6 +138,22 @@ pub enum MessageError {
     },
 }
 
+impl MessageError {
+    /// A short, stable name of the reason, for counting rejections.
+    pub fn reason(&self) -> &'static str {
+        match self {
+            MessageError::TooLarge { .. } => "payload_too_large",
+            MessageError::Json { .. } => "bad_json",
+            MessageError::Time(_) => "bad_time",
+            MessageError::NotFinite { .. } => "non_finite",
+            MessageError::OutOfRange { .. } => "out_of_range",
+            MessageError::NoCommand => "no_command",
+            MessageError::BothCommands => "both_commands",
+            MessageError::MissingField { .. } => "missing_field",
+        }
+    }
+}
+
 /// The kind of a JSON error (mirrors `serde_json::error::Category`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum JsonCategory {

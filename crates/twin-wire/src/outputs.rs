@@ -337,7 +337,9 @@ impl PredictionMessage {
                     east_m: p.local.east_m,
                     sog_mps: p.sog_mps,
                     cog_rad: p.cog_rad,
-                    position_sigma_m: ((p.position_sigma_m[0].powi(2) + p.position_sigma_m[1].powi(2)) / 2.0)
+                    position_sigma_m: ((p.position_sigma_m[0].powi(2)
+                        + p.position_sigma_m[1].powi(2))
+                        / 2.0)
                         .sqrt(),
                     sigma_north_m: p.position_sigma_m[0],
                     sigma_east_m: p.position_sigma_m[1],
@@ -378,7 +380,12 @@ impl AlarmMessage {
         Self {
             vessel: vessel.to_string(),
             time: time_string(c.time_s),
-            what: format!("{} thruster {} -> {}", c.side.name(), c.from.name(), c.to.name()),
+            what: format!(
+                "{} thruster {} -> {}",
+                c.side.name(),
+                c.from.name(),
+                c.to.name()
+            ),
             side: c.side.name().to_string(),
             from: c.from.into(),
             to: c.to.into(),

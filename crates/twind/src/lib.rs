@@ -1,1 +1,236 @@
-//! twind
+//! `twind`: the live digital-twin daemon.
+//!
+//! # Layout
+//! - [`settings`]: the daemon's own settings (`config/twind.toml`), raw and
+//!   validated.
+//! - [`vessel`]: one task per vessel owning that vessel's twin.
+//! - [`persist`]: calibration files saved and restored per vessel.
+//! - [`stats`]: counting and rate-limited logging of rejections.
+//! - [`run`] (here): the dispatcher: one Zenoh subscriber for every input
+//!   topic of the vessels this daemon owns, routing each message, in arrival
+//!   order, to its vessel's task; the queryable for the latest states; and
+//!   the graceful shutdown.
+//!
+//! # Shutdown
+//! Decide, tell, wait (tokio's guide): the caller cancels the token; the
+//! dispatcher routes what Zenoh has already delivered and stops reading;
+//! every vessel task drains its queue, publishes a last state and saves its
+//! calibration; `run` waits for all of them and returns. The caller closes
+//! the Zenoh session last. Nothing received is lost.
+//!
+//! # Invariants
+//! The daemon never crashes on input from the network: every payload is
+//! size-checked before parsing, every parse error and estimator rejection is
+//! a typed reason, counted per vessel (published on `twin/stats`) and logged
+//! at most once a minute per reason. Messages for vessel ids that are not
+//! plain names are refused and counted by the daemon.
+
+pub mod persist;
+pub mod settings;
+pub mod stats;
+pub mod vessel;
+
+use std::collections::HashMap;
+use std::sync::{Arc, RwLock};
+
+use tokio::sync::mpsc;
+use tokio_util::sync::CancellationToken;
+use tokio_util::task::TaskTracker;
+use twin_wire::Topic;
+use zenoh::Session;
+use zenoh::handlers::FifoChannel;
+use zenoh::key_expr::KeyExpr;
+
+use crate::settings::Settings;
+use crate::stats::Counters;
+use crate::vessel::{VesselEvent, VesselTask};
+
+/// The latest state payload of every vessel, for the queryable.
+pub type LatestStates = Arc<RwLock<HashMap<String, Vec<u8>>>>;
+
+/// What a run did, for the caller's final log line and for tests.
+#[derive(Debug, Default, Clone)]
+pub struct RunSummary {
+    /// Messages the daemon refused before any vessel could be named
+    /// (bad key, bad vessel id, too many vessels).
+    pub refused: Counters,
+    /// Messages routed to vessels.
+    pub routed: u64,
+    /// Per-vessel counters of every vessel task that ended.
+    pub vessels: HashMap<String, Counters>,
+}
+
+/// The key expression of every input message of the owned vessels:
+/// `{prefix}/{own}/*` (the last chunk is the topic; outputs under
+/// `twin/...` have one chunk more and do not match).
+pub fn input_key_expr(settings: &Settings) -> String {
+    format!("{}/{}/*", settings.keys.prefix(), settings.vessels.own)
+}
+
+/// Runs the daemon on an open Zenoh `session` until `shutdown` is cancelled.
+pub async fn run(
+    settings: Settings,
+    session: Session,
+    shutdown: CancellationToken,
+) -> anyhow::Result<RunSummary> {
+    let settings = Arc::new(settings);
+    let latest: LatestStates = Arc::default();
+    let subscriber = session
+        .declare_subscriber(input_key_expr(&settings))
+        .with(FifoChannel::new(4096))
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot subscribe to {}: {e}", input_key_expr(&settings)))?;
+    let state_key = format!(
+        "{}/{}/twin/state",
+        settings.keys.prefix(),
+        settings.vessels.own
+    );
+    let queryable = session
+        .declare_queryable(&state_key)
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot declare the queryable {state_key}: {e}"))?;
+    tracing::info!(inputs = %input_key_expr(&settings), "twind running");
+
+    let tracker = TaskTracker::new();
+    let (done_tx, mut done_rx) = mpsc::unbounded_channel::<(String, Counters)>();
+    let mut vessels: HashMap<String, mpsc::Sender<VesselEvent>> = HashMap::new();
+    let mut summary = RunSummary::default();
+
+    // The queryable answers from the shared map; it needs no vessel task.
+    let answer_latest = {
+        let latest = latest.clone();
+        let keys = settings.keys.clone();
+        let shutdown = shutdown.clone();
+        tokio::spawn(async move {
+            loop {
+                let query = tokio::select! {
+                    _ = shutdown.cancelled() => break,
+                    q = queryable.recv_async() => match q { Ok(q) => q, Err(_) => break },
+                };
+                let replies: Vec<(String, Vec<u8>)> = match latest.read() {
+                    Ok(map) => map
+                        .iter()
+                        .filter_map(|(vessel, bytes)| {
+                            let id = twin_wire::VesselId::new(vessel).ok()?;
+                            let key = keys.twin_state(&id);
+                            let ke = KeyExpr::try_from(key.as_str()).ok()?;
+                            query
+                                .key_expr()
+                                .intersects(&ke)
+                                .then(|| (key, bytes.clone()))
+                        })
+                        .collect(),
+                    Err(_) => Vec::new(),
+                };
+                for (key, bytes) in replies {
+                    if let Err(e) = query.reply(key, bytes).await {
+                        tracing::warn!("query not answered: {e}");
+                    }
+                }
+            }
+        })
+    };
+
+    let mut draining = false;
+    loop {
+        let sample = if draining {
+            // Shutting down: route what Zenoh already delivered, then stop.
+            match subscriber.try_recv() {
+                Ok(Some(s)) => s,
+                _ => break,
+            }
+        } else {
+            tokio::select! {
+                _ = shutdown.cancelled() => {
+                    draining = true;
+                    continue;
+                }
+                Some((vessel, counters)) = done_rx.recv() => {
+                    vessels.remove(&vessel);
+                    summary.vessels.insert(vessel, counters);
+                    continue;
+                }
+                s = subscriber.recv_async() => match s { Ok(s) => s, Err(_) => break },
+            }
+        };
+        let key = sample.key_expr().as_str().to_string();
+        let (id, topic) = match settings.keys.parse(&key) {
+            Ok(parsed) => parsed,
+            Err(e) => {
+                summary
+                    .refused
+                    .reject("-", "bad_key", &format!("{key}: {e}"));
+                continue;
+            }
+        };
+        if !matches!(topic, Topic::Gnss | Topic::Nmea | Topic::Actuators) {
+            summary
+                .refused
+                .reject(id.as_str(), "not_an_input_topic", &key);
+            continue;
+        }
+        let len = sample.payload().len();
+        let event = if len > settings.max_payload_bytes {
+            VesselEvent::Refused {
+                reason: "payload_too_large",
+                detail: format!("{len} bytes on {key}, limit {}", settings.max_payload_bytes),
+            }
+        } else {
+            VesselEvent::Payload {
+                topic,
+                bytes: sample.payload().to_bytes().into_owned(),
+            }
+        };
+        let vessel = id.as_str().to_string();
+        let tx = match vessels.get(&vessel).filter(|tx| !tx.is_closed()) {
+            Some(tx) => tx.clone(),
+            None => {
+                if vessels.len() >= settings.vessels.max_vessels {
+                    summary.refused.reject(
+                        &vessel,
+                        "too_many_vessels",
+                        &settings.vessels.max_vessels,
+                    );
+                    continue;
+                }
+                let (tx, rx) = mpsc::channel(settings.vessels.queue_depth);
+                let task = VesselTask::new(id, settings.clone(), session.clone(), latest.clone());
+                let done = done_tx.clone();
+                let name = vessel.clone();
+                tracker.spawn(async move {
+                    let counters = task.run(rx).await;
+                    let _ = done.send((name, counters));
+                });
+                vessels.insert(vessel.clone(), tx.clone());
+                tx
+            }
+        };
+        summary.routed += 1;
+        // Waits while the vessel's queue is full: back-pressure, not loss.
+        if tx.send(event).await.is_err() {
+            summary.refused.reject(
+                &vessel,
+                "vessel_task_ended",
+                &"the task ended before the message",
+            );
+        }
+    }
+
+    // Stop reading first, then let every vessel finish.
+    drop(subscriber);
+    drop(vessels);
+    tracker.close();
+    tracker.wait().await;
+    drop(done_tx);
+    while let Some((vessel, counters)) = done_rx.recv().await {
+        summary.vessels.insert(vessel, counters);
+    }
+    answer_latest.abort();
+    tracing::info!(
+        routed = summary.routed,
+        refused = summary.refused.total_rejected(),
+        vessels = summary.vessels.len(),
+        "twind stopped"
+    );
+    Ok(summary)
+}

@@ -1,0 +1,417 @@
+//! The daemon's own settings, in two steps (as ripgrep parses flags): a raw
+//! serde form read from `config/twind.toml` with every field optional and
+//! unknown keys refused, validated into [`Settings`], the form the code uses.
+//! Every validation error names the bad key. Zenoh's settings stay in Zenoh's
+//! own JSON5 file (`config/zenoh.json5`).
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use twin_core::twin::TwinConfig;
+use twin_wire::KeySpace;
+
+/// Why the settings cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum SettingsError {
+    /// The file could not be read.
+    #[error("cannot read {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The error.
+        source: std::io::Error,
+    },
+    /// The file is not valid TOML for these settings (unknown key, wrong type).
+    #[error("{path}: {message}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// toml's message, which names the key and line.
+        message: String,
+    },
+    /// A value is out of its range.
+    #[error("setting `{key}`: {reason}")]
+    Invalid {
+        /// The dotted key.
+        key: &'static str,
+        /// What is wrong.
+        reason: String,
+    },
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSettings {
+    #[serde(default)]
+    keys: RawKeys,
+    #[serde(default)]
+    vessels: RawVessels,
+    #[serde(default)]
+    publish: RawPublish,
+    #[serde(default)]
+    input: RawInput,
+    #[serde(default)]
+    persistence: RawPersistence,
+    #[serde(default)]
+    web: RawWeb,
+    #[serde(default)]
+    twin: RawTwin,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawKeys {
+    prefix: Option<String>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawVessels {
+    own: Option<String>,
+    drop_after_silence_s: Option<f64>,
+    stale_after_s: Option<f64>,
+    max_vessels: Option<usize>,
+    queue_depth: Option<usize>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPublish {
+    prediction_interval_s: Option<f64>,
+    prediction_horizon_s: Option<f64>,
+    prediction_step_s: Option<f64>,
+    stats_interval_s: Option<f64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawInput {
+    max_payload_bytes: Option<usize>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPersistence {
+    dir: Option<PathBuf>,
+    save_interval_s: Option<f64>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawWeb {
+    enabled: Option<bool>,
+    listen: Option<String>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTwin {
+    estimate_current: Option<bool>,
+    forgetting_time_constant_s: Option<f64>,
+    suspect_loss: Option<f64>,
+    fault_loss: Option<f64>,
+    clear_loss: Option<f64>,
+}
+
+/// Which vessels this daemon serves, and how long it keeps them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VesselSettings {
+    /// The vessel-id chunk of the subscribed key expressions, in Zenoh's
+    /// syntax: `*` for every vessel, `north-$*` for ids starting `north-`.
+    pub own: String,
+    /// A vessel silent this long is dropped (its calibration saved), s.
+    pub drop_after_silence_s: f64,
+    /// A vessel with no fix for this long is published as stale, s.
+    pub stale_after_s: f64,
+    /// Most vessels served at once; messages for more are rejected.
+    pub max_vessels: usize,
+    /// Messages queued per vessel before the dispatcher waits for it.
+    pub queue_depth: usize,
+}
+
+/// What is published and how often.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PublishSettings {
+    /// A forecast is published each time this much message time has passed, s.
+    pub prediction_interval_s: f64,
+    /// Forecast horizon, s.
+    pub prediction_horizon_s: f64,
+    /// Forecast step, s.
+    pub prediction_step_s: f64,
+    /// Statistics are published this often (wall clock), s.
+    pub stats_interval_s: f64,
+}
+
+/// Where calibrations are kept.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PersistenceSettings {
+    /// Directory of the per-vessel calibration files; `None` keeps nothing.
+    pub dir: Option<PathBuf>,
+    /// Calibrations are saved this often (wall clock), and on shutdown, s.
+    pub save_interval_s: f64,
+}
+
+/// The web page.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WebSettings {
+    /// Serve the page.
+    pub enabled: bool,
+    /// Address to serve it on.
+    pub listen: String,
+}
+
+/// The validated settings.
+#[derive(Debug, Clone)]
+pub struct Settings {
+    /// Key expressions under the configured prefix.
+    pub keys: KeySpace,
+    /// Vessels served.
+    pub vessels: VesselSettings,
+    /// Publication.
+    pub publish: PublishSettings,
+    /// Largest payload accepted, bytes; larger ones are refused unread.
+    pub max_payload_bytes: usize,
+    /// Calibration storage.
+    pub persistence: PersistenceSettings,
+    /// Web page.
+    pub web: WebSettings,
+    /// The twin each vessel runs.
+    pub twin: TwinConfig,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self::from_raw(RawSettings::default()).expect("the defaults are valid")
+    }
+}
+
+fn positive(key: &'static str, v: f64) -> Result<f64, SettingsError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(SettingsError::Invalid {
+            key,
+            reason: format!("must be a positive number of seconds, got {v}"),
+        })
+    }
+}
+
+fn fraction(key: &'static str, v: f64) -> Result<f64, SettingsError> {
+    if (0.0..=1.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(SettingsError::Invalid {
+            key,
+            reason: format!("must be in [0, 1], got {v}"),
+        })
+    }
+}
+
+impl Settings {
+    /// Reads and validates a settings file.
+    pub fn from_file(path: &Path) -> Result<Self, SettingsError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SettingsError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_toml(&text).map_err(|e| match e {
+            SettingsError::Parse { message, .. } => SettingsError::Parse {
+                path: path.to_path_buf(),
+                message,
+            },
+            other => other,
+        })
+    }
+
+    /// Parses and validates settings from TOML text.
+    pub fn from_toml(text: &str) -> Result<Self, SettingsError> {
+        let raw: RawSettings = toml::from_str(text).map_err(|e| SettingsError::Parse {
+            path: PathBuf::from("<settings>"),
+            message: e.to_string(),
+        })?;
+        Self::from_raw(raw)
+    }
+
+    fn from_raw(raw: RawSettings) -> Result<Self, SettingsError> {
+        let prefix = raw.keys.prefix.unwrap_or_else(|| "asv".to_string());
+        let keys = KeySpace::new(&prefix).map_err(|e| SettingsError::Invalid {
+            key: "keys.prefix",
+            reason: e.to_string(),
+        })?;
+        let own = raw.vessels.own.unwrap_or_else(|| "*".to_string());
+        if own.is_empty() || own.contains('/') || own.contains("**") {
+            return Err(SettingsError::Invalid {
+                key: "vessels.own",
+                reason: format!(
+                    "{own:?} must be one key-expression chunk such as `*` or `north-$*`"
+                ),
+            });
+        }
+        let vessels = VesselSettings {
+            own,
+            drop_after_silence_s: positive(
+                "vessels.drop_after_silence_s",
+                raw.vessels.drop_after_silence_s.unwrap_or(300.0),
+            )?,
+            stale_after_s: positive(
+                "vessels.stale_after_s",
+                raw.vessels.stale_after_s.unwrap_or(2.0),
+            )?,
+            max_vessels: match raw.vessels.max_vessels.unwrap_or(20_000) {
+                0 => {
+                    return Err(SettingsError::Invalid {
+                        key: "vessels.max_vessels",
+                        reason: "must be at least 1".into(),
+                    });
+                }
+                n => n,
+            },
+            queue_depth: match raw.vessels.queue_depth.unwrap_or(256) {
+                0 => {
+                    return Err(SettingsError::Invalid {
+                        key: "vessels.queue_depth",
+                        reason: "must be at least 1".into(),
+                    });
+                }
+                n => n,
+            },
+        };
+        let publish = PublishSettings {
+            prediction_interval_s: positive(
+                "publish.prediction_interval_s",
+                raw.publish.prediction_interval_s.unwrap_or(1.0),
+            )?,
+            prediction_horizon_s: positive(
+                "publish.prediction_horizon_s",
+                raw.publish.prediction_horizon_s.unwrap_or(60.0),
+            )?,
+            prediction_step_s: positive(
+                "publish.prediction_step_s",
+                raw.publish.prediction_step_s.unwrap_or(1.0),
+            )?,
+            stats_interval_s: positive(
+                "publish.stats_interval_s",
+                raw.publish.stats_interval_s.unwrap_or(5.0),
+            )?,
+        };
+        if publish.prediction_horizon_s / publish.prediction_step_s > 3600.0 {
+            return Err(SettingsError::Invalid {
+                key: "publish.prediction_step_s",
+                reason: "more than 3600 forecast points per horizon".into(),
+            });
+        }
+        let max_payload_bytes = raw.input.max_payload_bytes.unwrap_or(64 * 1024);
+        if !(256..=16 * 1024 * 1024).contains(&max_payload_bytes) {
+            return Err(SettingsError::Invalid {
+                key: "input.max_payload_bytes",
+                reason: format!("must be between 256 B and 16 MiB, got {max_payload_bytes}"),
+            });
+        }
+        let persistence = PersistenceSettings {
+            dir: raw.persistence.dir,
+            save_interval_s: positive(
+                "persistence.save_interval_s",
+                raw.persistence.save_interval_s.unwrap_or(30.0),
+            )?,
+        };
+        let web = WebSettings {
+            enabled: raw.web.enabled.unwrap_or(false),
+            listen: raw
+                .web
+                .listen
+                .unwrap_or_else(|| "127.0.0.1:8080".to_string()),
+        };
+        if web.listen.parse::<std::net::SocketAddr>().is_err() {
+            return Err(SettingsError::Invalid {
+                key: "web.listen",
+                reason: format!("{:?} is not an address such as 127.0.0.1:8080", web.listen),
+            });
+        }
+        let mut twin = TwinConfig::default();
+        if let Some(b) = raw.twin.estimate_current {
+            twin.kinetic.estimate_current = b;
+        }
+        if let Some(t) = raw.twin.forgetting_time_constant_s {
+            twin.kinetic.filter.forgetting_time_constant_s =
+                positive("twin.forgetting_time_constant_s", t)?;
+        }
+        if let Some(v) = raw.twin.suspect_loss {
+            twin.decision.suspect_loss = fraction("twin.suspect_loss", v)?;
+        }
+        if let Some(v) = raw.twin.fault_loss {
+            twin.decision.fault_loss = fraction("twin.fault_loss", v)?;
+        }
+        if let Some(v) = raw.twin.clear_loss {
+            twin.decision.clear_loss = fraction("twin.clear_loss", v)?;
+        }
+        let d = twin.decision;
+        if !(d.clear_loss < d.suspect_loss && d.suspect_loss <= d.fault_loss) {
+            return Err(SettingsError::Invalid {
+                key: "twin.suspect_loss",
+                reason: format!(
+                    "need clear_loss < suspect_loss <= fault_loss, got {} / {} / {}",
+                    d.clear_loss, d.suspect_loss, d.fault_loss
+                ),
+            });
+        }
+        Ok(Self {
+            keys,
+            vessels,
+            publish,
+            max_payload_bytes,
+            persistence,
+            web,
+            twin,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_and_the_shipped_file_are_valid() {
+        let s = Settings::default();
+        assert_eq!(s.keys.prefix(), "asv");
+        assert_eq!(s.vessels.own, "*");
+        assert!(!s.web.enabled);
+        let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../../config/twind.toml");
+        Settings::from_file(Path::new(shipped)).unwrap();
+    }
+
+    #[test]
+    fn errors_name_the_bad_key() {
+        let cases = [
+            (
+                "[publish]\nprediction_step_s = -1\n",
+                "publish.prediction_step_s",
+            ),
+            ("[vessels]\nown = \"a/b\"\n", "vessels.own"),
+            ("[keys]\nprefix = \"a b\"\n", "keys.prefix"),
+            (
+                "[input]\nmax_payload_bytes = 10\n",
+                "input.max_payload_bytes",
+            ),
+            ("[web]\nlisten = \"nowhere\"\n", "web.listen"),
+            (
+                "[twin]\nsuspect_loss = 0.5\nfault_loss = 0.2\n",
+                "twin.suspect_loss",
+            ),
+            ("[vessels]\nqueue_depth = 0\n", "vessels.queue_depth"),
+        ];
+        for (text, key) in cases {
+            let err = Settings::from_toml(text).unwrap_err().to_string();
+            assert!(err.contains(key), "{text:?}: {err}");
+        }
+        // Unknown keys and wrong types are refused by name too.
+        let err = Settings::from_toml("[publish]\nprediction_horizon = 5\n")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("prediction_horizon"), "{err}");
+        let err = Settings::from_toml("[vessels]\nstale_after_s = \"soon\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("stale_after_s"), "{err}");
+    }
+}

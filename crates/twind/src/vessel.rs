@@ -1,0 +1,434 @@
+//! One vessel's twin as a task: it owns the vessel's `VesselTwin`, reads a
+//! closed enum of events from a bounded channel, and publishes the vessel's
+//! outputs. Nothing else touches the twin, so there are no locks on the hot
+//! path.
+//!
+//! Rules this task keeps:
+//! - the estimator steps on message time; every rejection is counted with a
+//!   typed reason and leaves the estimate as it was (the twin guarantees it);
+//! - state and fault are published on every accepted fix, a forecast each
+//!   `prediction_interval_s` of message time, an alarm on every status change;
+//! - with no fix for `stale_after_s` (wall clock) the state is published again
+//!   marked `stale` while the forecast keeps running from the last fix;
+//! - after `drop_after_silence_s` without any message the task saves the
+//!   calibration and ends (the dispatcher starts a new one if the vessel
+//!   returns, restoring the calibration);
+//! - on shutdown (its channel closed by the dispatcher) it handles what is
+//!   queued, publishes a last state and fault, saves the calibration, and
+//!   ends; its liveliness token goes with it.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use tokio::sync::mpsc;
+use twin_core::decision::StatusChange;
+use twin_core::sample::{GnssFix, PropellerSpeeds};
+use twin_core::twin::{StepOutput, VesselTwin};
+use twin_wire::assemble::{Assembled, AssemblerConfig, FixAssembler};
+use twin_wire::measurement::ThrustCommand;
+use twin_wire::messages::{ActuatorCommand, decode_actuators_limited, decode_gnss_limited};
+use twin_wire::outputs::{
+    AlarmMessage, FaultMessage, PredictionMessage, StateMessage, StatsMessage,
+};
+use twin_wire::read::{NmeaDecoder, ReadOptions};
+use twin_wire::{Topic, VesselId};
+use zenoh::Session;
+use zenoh::pubsub::Publisher;
+use zenoh::qos::CongestionControl;
+
+use crate::LatestStates;
+use crate::persist;
+use crate::settings::Settings;
+use crate::stats::Counters;
+
+/// What the dispatcher hands a vessel's task.
+#[derive(Debug)]
+pub enum VesselEvent {
+    /// A payload received on one of the vessel's input topics.
+    Payload {
+        /// Which topic.
+        topic: Topic,
+        /// The payload (already checked against the size limit).
+        bytes: Vec<u8>,
+    },
+    /// A message refused before it could be handed over (e.g. too large).
+    Refused {
+        /// The reason, as counted.
+        reason: &'static str,
+        /// A detail for the log.
+        detail: String,
+    },
+}
+
+struct Publishers {
+    state: Publisher<'static>,
+    fault: Publisher<'static>,
+    prediction: Publisher<'static>,
+    alarm: Publisher<'static>,
+    stats: Publisher<'static>,
+}
+
+async fn publisher(session: &Session, key: String) -> zenoh::Result<Publisher<'static>> {
+    session
+        .declare_publisher(key)
+        .congestion_control(CongestionControl::Block)
+        .await
+}
+
+/// A vessel's task.
+pub struct VesselTask {
+    id: VesselId,
+    settings: Arc<Settings>,
+    session: Session,
+    latest: LatestStates,
+    twin: VesselTwin,
+    nmea: NmeaDecoder,
+    assembler: FixAssembler,
+    counters: Counters,
+    replay: bool,
+    last_prediction_time_s: Option<f64>,
+    last_fix_wall: Option<Instant>,
+    last_event_wall: Instant,
+    stale_published: bool,
+    unsaved: bool,
+}
+
+impl VesselTask {
+    /// A task for vessel `id`, with its calibration restored if one is saved.
+    pub fn new(
+        id: VesselId,
+        settings: Arc<Settings>,
+        session: Session,
+        latest: LatestStates,
+    ) -> Self {
+        let mut twin =
+            VesselTwin::new(settings.twin).expect("the settings' twin configuration was validated");
+        if let Some(dir) = &settings.persistence.dir {
+            match persist::load(dir, id.as_str()) {
+                Ok(Some(calibration)) => {
+                    tracing::info!(vessel = id.as_str(), theta = ?calibration.theta, "calibration restored");
+                    twin.restore(calibration);
+                }
+                Ok(None) => {}
+                Err(e) => tracing::warn!(vessel = id.as_str(), "calibration not restored: {e}"),
+            }
+        }
+        let assembler = FixAssembler::new(AssemblerConfig {
+            // Live data: decide the position source within a second.
+            decision_window_s: 1.0,
+            ..AssemblerConfig::default()
+        });
+        Self {
+            id,
+            settings,
+            session,
+            latest,
+            twin,
+            nmea: NmeaDecoder::new(ReadOptions::default()),
+            assembler,
+            counters: Counters::default(),
+            replay: false,
+            last_prediction_time_s: None,
+            last_fix_wall: None,
+            last_event_wall: Instant::now(),
+            stale_published: false,
+            unsaved: false,
+        }
+    }
+
+    /// The twin (for tests and the demo's summary).
+    pub fn twin(&self) -> &VesselTwin {
+        &self.twin
+    }
+
+    /// Runs until the channel closes (the dispatcher is done: shutdown, after
+    /// everything queued has been handled) or the vessel falls silent.
+    pub async fn run(mut self, mut rx: mpsc::Receiver<VesselEvent>) -> Counters {
+        let keys = self.settings.keys.clone();
+        let publishers = match self.declare(&keys).await {
+            Ok(p) => p,
+            Err(e) => {
+                tracing::error!(vessel = self.id.as_str(), "cannot declare publishers: {e}");
+                return self.counters;
+            }
+        };
+        let token = self
+            .session
+            .liveliness()
+            .declare_token(keys.twin_alive(&self.id))
+            .await;
+        if let Err(e) = &token {
+            tracing::warn!(vessel = self.id.as_str(), "no liveliness token: {e}");
+        }
+        let tick = Duration::from_millis(250);
+        let mut ticker = tokio::time::interval(tick);
+        ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        let mut last_stats = Instant::now();
+        let mut last_save = Instant::now();
+        loop {
+            tokio::select! {
+                biased;
+                ev = rx.recv() => match ev {
+                    Some(ev) => {
+                        self.last_event_wall = Instant::now();
+                        self.handle(ev, &publishers).await;
+                    }
+                    None => break,
+                },
+                _ = ticker.tick() => {
+                    let now = Instant::now();
+                    if now.duration_since(self.last_event_wall).as_secs_f64() > self.settings.vessels.drop_after_silence_s {
+                        tracing::info!(vessel = self.id.as_str(), "silent: dropping the vessel's twin");
+                        break;
+                    }
+                    self.check_stale(&publishers).await;
+                    if now.duration_since(last_stats).as_secs_f64() >= self.settings.publish.stats_interval_s {
+                        last_stats = now;
+                        self.publish_stats(&publishers).await;
+                    }
+                    if self.unsaved && now.duration_since(last_save).as_secs_f64() >= self.settings.persistence.save_interval_s {
+                        last_save = now;
+                        self.save();
+                    }
+                }
+            }
+        }
+        // Last words: state, fault and statistics, then the calibration.
+        self.publish_state_and_fault(&publishers, false).await;
+        self.publish_stats(&publishers).await;
+        self.save();
+        drop(token);
+        self.counters
+    }
+
+    async fn declare(&self, keys: &twin_wire::KeySpace) -> zenoh::Result<Publishers> {
+        Ok(Publishers {
+            state: publisher(&self.session, keys.twin_state(&self.id)).await?,
+            fault: publisher(&self.session, keys.twin_fault(&self.id)).await?,
+            prediction: publisher(&self.session, keys.twin_prediction(&self.id)).await?,
+            alarm: publisher(&self.session, keys.twin_alarm(&self.id)).await?,
+            stats: publisher(&self.session, keys.twin_stats(&self.id)).await?,
+        })
+    }
+
+    fn save(&mut self) {
+        let Some(dir) = &self.settings.persistence.dir else {
+            return;
+        };
+        if let Some(c) = self.twin.calibration() {
+            match persist::save(dir, self.id.as_str(), &c) {
+                Ok(()) => self.unsaved = false,
+                Err(e) => tracing::error!(vessel = self.id.as_str(), "calibration not saved: {e}"),
+            }
+        }
+    }
+
+    async fn handle(&mut self, ev: VesselEvent, p: &Publishers) {
+        match ev {
+            VesselEvent::Refused { reason, detail } => {
+                self.counters.reject(self.id.as_str(), reason, &detail)
+            }
+            VesselEvent::Payload { topic, bytes } => match topic {
+                Topic::Gnss => match decode_gnss_limited(&bytes, self.settings.max_payload_bytes) {
+                    Ok(d) => {
+                        self.replay = d.replay;
+                        self.counters.accept("gnss");
+                        self.on_fix(&d.value, p).await;
+                    }
+                    Err(e) => self.counters.reject(self.id.as_str(), e.reason(), &e),
+                },
+                Topic::Actuators => {
+                    match decode_actuators_limited(&bytes, self.settings.max_payload_bytes) {
+                        Ok(d) => {
+                            self.replay = d.replay;
+                            self.counters.accept("actuators");
+                            self.on_command(d.value);
+                        }
+                        Err(e) => self.counters.reject(self.id.as_str(), e.reason(), &e),
+                    }
+                }
+                Topic::Nmea => {
+                    self.counters.accept("nmea");
+                    let mut items = Vec::new();
+                    self.nmea.decode_payload(&bytes, &mut items);
+                    let mut assembled = Vec::new();
+                    for item in items {
+                        match item {
+                            Ok(record) => self.assembler.push(record, &mut assembled),
+                            Err(rejection) => {
+                                let reason = rejection.reason.kind().name();
+                                self.counters.reject(self.id.as_str(), reason, &rejection);
+                            }
+                        }
+                    }
+                    for a in assembled {
+                        match a {
+                            Assembled::Fix(fix) => {
+                                self.counters.accept("nmea_fix");
+                                self.on_fix(&fix, p).await;
+                            }
+                            Assembled::Propellers(s) => self.on_command(ActuatorCommand::Speeds(s)),
+                            Assembled::Thrust(t) => self.on_command(ActuatorCommand::Thrust(t)),
+                        }
+                    }
+                }
+                other => {
+                    self.counters
+                        .reject(self.id.as_str(), "not_an_input_topic", &other.suffix())
+                }
+            },
+        }
+    }
+
+    fn on_command(&mut self, command: ActuatorCommand) {
+        let speeds = match command {
+            ActuatorCommand::Speeds(s) => s,
+            ActuatorCommand::Thrust(ThrustCommand {
+                time_s,
+                port_n,
+                starboard_n,
+            }) => {
+                let params = &self.settings.twin.kinetic.params;
+                PropellerSpeeds {
+                    time_s,
+                    port_radps: params.shaft_speed_for_thrust_radps(port_n),
+                    starboard_radps: params.shaft_speed_for_thrust_radps(starboard_n),
+                }
+            }
+        };
+        if let Err(r) = self.twin.on_propellers(&speeds) {
+            self.counters.reject(self.id.as_str(), r.reason(), &r);
+        }
+    }
+
+    async fn on_fix(&mut self, fix: &GnssFix, p: &Publishers) {
+        match self.twin.on_gnss(fix) {
+            Ok(out) => {
+                self.last_fix_wall = Some(Instant::now());
+                self.stale_published = false;
+                self.unsaved = true;
+                self.publish_step(&out, p).await;
+            }
+            Err(r) => self.counters.reject(self.id.as_str(), r.reason(), &r),
+        }
+    }
+
+    async fn publish_step(&mut self, out: &StepOutput, p: &Publishers) {
+        let vessel = self.id.as_str();
+        let state = StateMessage::new(vessel, &out.state, false, self.replay);
+        self.put_state(&state, p).await;
+        put_json(
+            &p.fault,
+            &FaultMessage::new(vessel, &out.faults, self.replay),
+        )
+        .await;
+        for change in &out.changes {
+            self.publish_alarm(change, p).await;
+        }
+        let t = out.state.time_s;
+        let due = self
+            .last_prediction_time_s
+            .is_none_or(|last| t - last >= self.settings.publish.prediction_interval_s - 1e-9);
+        if due {
+            self.last_prediction_time_s = Some(t);
+            self.publish_prediction(p).await;
+        }
+    }
+
+    async fn publish_alarm(&self, change: &StatusChange, p: &Publishers) {
+        let alarm = AlarmMessage::new(self.id.as_str(), change, self.replay);
+        tracing::info!(
+            vessel = self.id.as_str(),
+            "{} (confidence {:.2})",
+            alarm.what,
+            alarm.confidence
+        );
+        put_json(&p.alarm, &alarm).await;
+    }
+
+    async fn publish_prediction(&self, p: &Publishers) {
+        let Some(state) = self.twin.state_report() else {
+            return;
+        };
+        let s = &self.settings.publish;
+        let points = self
+            .twin
+            .forecast(s.prediction_horizon_s, s.prediction_step_s);
+        let msg = PredictionMessage::new(
+            self.id.as_str(),
+            state.time_s,
+            s.prediction_horizon_s,
+            s.prediction_step_s,
+            state.source,
+            &points,
+            self.replay,
+        );
+        put_json(&p.prediction, &msg).await;
+    }
+
+    async fn put_state(&self, state: &StateMessage, p: &Publishers) {
+        let Ok(bytes) = serde_json::to_vec(state) else {
+            return;
+        };
+        if let Ok(mut map) = self.latest.write() {
+            map.insert(self.id.as_str().to_string(), bytes.clone());
+        }
+        if let Err(e) = p.state.put(bytes).await {
+            tracing::warn!(vessel = self.id.as_str(), "state not published: {e}");
+        }
+    }
+
+    async fn publish_state_and_fault(&self, p: &Publishers, stale: bool) {
+        let Some(state) = self.twin.state_report() else {
+            return;
+        };
+        let msg = StateMessage::new(self.id.as_str(), &state, stale, self.replay);
+        self.put_state(&msg, p).await;
+        let faults = self.twin.fault_report(state.time_s);
+        put_json(
+            &p.fault,
+            &FaultMessage::new(self.id.as_str(), &faults, self.replay),
+        )
+        .await;
+    }
+
+    async fn check_stale(&mut self, p: &Publishers) {
+        let Some(last) = self.last_fix_wall else {
+            return;
+        };
+        let silent_s = last.elapsed().as_secs_f64();
+        if silent_s > self.settings.vessels.stale_after_s && !self.stale_published {
+            tracing::info!(
+                vessel = self.id.as_str(),
+                "no fix for {silent_s:.1} s: state is stale"
+            );
+            self.stale_published = true;
+            self.publish_state_and_fault(p, true).await;
+            self.publish_prediction(p).await;
+        }
+    }
+
+    /// The counters as published on `twin/stats`.
+    pub fn stats_message(&self) -> StatsMessage {
+        StatsMessage {
+            vessel: self.id.as_str().to_string(),
+            accepted: self.counters.accepted.clone(),
+            rejected: self.counters.rejected.clone(),
+        }
+    }
+
+    async fn publish_stats(&self, p: &Publishers) {
+        put_json(&p.stats, &self.stats_message()).await;
+    }
+}
+
+async fn put_json<T: serde::Serialize>(publisher: &Publisher<'static>, value: &T) {
+    match serde_json::to_vec(value) {
+        Ok(bytes) => {
+            if let Err(e) = publisher.put(bytes).await {
+                tracing::warn!(key = %publisher.key_expr(), "not published: {e}");
+            }
+        }
+        Err(e) => tracing::error!("cannot encode a payload: {e}"),
+    }
+}

@@ -1,0 +1,333 @@
+//! The daemon end to end, with in-process Zenoh sessions on loopback: a
+//! simulated trial published through Zenoh gives the daemon exactly the
+//! estimates the offline path computes from the same messages; vessels do not
+//! talk across; bad inputs are refused with their reasons counted and leave
+//! the estimates as they were.
+
+use std::time::Duration;
+
+use tokio_util::sync::CancellationToken;
+use twin_tests::net::{config, free_port};
+use twin_tests::wire::{Messages, messages, offline, simulate as scenario};
+use twin_wire::outputs::{FaultMessage, StateMessage};
+use twind::settings::Settings;
+use zenoh::Session;
+
+struct Rig {
+    daemon: Session,
+    input: Session,
+    output: Session,
+    cancel: CancellationToken,
+    handle: tokio::task::JoinHandle<anyhow::Result<twind::RunSummary>>,
+}
+
+async fn wait_matching(publisher: &zenoh::pubsub::Publisher<'_>) {
+    twin_tests::wire::wait_matching(publisher, Duration::from_secs(10)).await;
+}
+
+async fn rig(settings: Settings) -> Rig {
+    let port = free_port();
+    let daemon = zenoh::open(config("peer", &[port], &[])).await.unwrap();
+    let input = zenoh::open(config("peer", &[], &[port])).await.unwrap();
+    let output = zenoh::open(config("peer", &[], &[port])).await.unwrap();
+    let cancel = CancellationToken::new();
+    let handle = tokio::spawn(twind::run(settings, daemon.clone(), cancel.clone()));
+    Rig {
+        daemon,
+        input,
+        output,
+        cancel,
+        handle,
+    }
+}
+
+impl Rig {
+    /// Publishes the messages of `vessel` in order.
+    async fn publish(&self, vessel: &str, msgs: &[(&'static str, Vec<u8>)]) {
+        twin_tests::wire::publish(&self.input, vessel, msgs).await;
+    }
+
+    /// Subscribes to everything the daemon says about `vessel`, and waits
+    /// until the daemon's session sees the subscription.
+    async fn collect(
+        &self,
+        vessel: &str,
+    ) -> zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>> {
+        let sub = self
+            .output
+            .declare_subscriber(format!("asv/{vessel}/twin/**"))
+            .with(zenoh::handlers::FifoChannel::new(100_000))
+            .await
+            .unwrap();
+        let probe = self
+            .daemon
+            .declare_publisher(format!("asv/{vessel}/twin/state"))
+            .await
+            .unwrap();
+        wait_matching(&probe).await;
+        sub
+    }
+
+    async fn stop(self) -> twind::RunSummary {
+        // Let the last messages through before asking the daemon to stop.
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        self.cancel.cancel();
+        let summary = tokio::time::timeout(Duration::from_secs(20), self.handle)
+            .await
+            .unwrap()
+            .unwrap()
+            .unwrap();
+        self.input.close().await.unwrap();
+        self.output.close().await.unwrap();
+        self.daemon.close().await.unwrap();
+        summary
+    }
+}
+
+fn last_fault(samples: &[zenoh::sample::Sample]) -> FaultMessage {
+    let s = samples
+        .iter()
+        .rev()
+        .find(|s| s.key_expr().as_str().ends_with("/twin/fault"))
+        .expect("a fault message");
+    serde_json::from_slice(&s.payload().to_bytes()).unwrap()
+}
+
+fn states(samples: &[zenoh::sample::Sample]) -> Vec<StateMessage> {
+    samples
+        .iter()
+        .filter(|s| s.key_expr().as_str().ends_with("/twin/state"))
+        .map(|s| serde_json::from_slice(&s.payload().to_bytes()).unwrap())
+        .collect()
+}
+
+fn drain(
+    sub: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+) -> Vec<zenoh::sample::Sample> {
+    let mut v = Vec::new();
+    while let Ok(Some(s)) = sub.try_recv() {
+        v.push(s);
+    }
+    v
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_replayed_trial_gives_the_daemon_the_offline_estimates() {
+    let run = scenario("s-manoeuvre_new-broken", 0.18, 8);
+    let msgs = messages(&run);
+    let expected = offline(&msgs);
+    let rig = rig(Settings::default()).await;
+    let sub = rig.collect("otter-1").await;
+    rig.publish("otter-1", &msgs).await;
+    let summary = rig.stop().await;
+    let samples = drain(&sub);
+    let fault = last_fault(&samples);
+    let offline_fault = FaultMessage::new(
+        "otter-1",
+        &expected.fault_report(expected.state_report().unwrap().time_s),
+        true,
+    );
+    println!(
+        "daemon: port {:?} +- {:?} ({:?}); offline: port {:?}",
+        fault.thrusters.port.loss,
+        fault.thrusters.port.sigma,
+        fault.thrusters.port.status,
+        offline_fault.thrusters.port.loss
+    );
+    // Identical estimates: the same messages, the same code, the same numbers.
+    assert_eq!(fault.thrusters, offline_fault.thrusters);
+    assert!((fault.thrusters.port.loss.unwrap() - 0.18).abs() < 0.03);
+    // Every fix gave a state, in order, and the last one is the offline one.
+    let st = states(&samples);
+    let fixes = msgs.iter().filter(|(t, _)| *t == "gnss").count();
+    assert!(st.len() >= fixes, "{} states for {fixes} fixes", st.len());
+    let offline_state =
+        StateMessage::new("otter-1", &expected.state_report().unwrap(), false, true);
+    assert_eq!(st.last().unwrap(), &offline_state);
+    let counters = &summary.vessels["otter-1"];
+    assert_eq!(counters.accepted["gnss"] as usize, fixes);
+    assert_eq!(counters.total_rejected(), 0, "{:?}", counters.rejected);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn three_vessels_at_once_do_not_talk_across() {
+    // Three different boats: port losses 0, 0.2 and 0.35, different noise.
+    let trials: Vec<(&str, Messages)> = vec![
+        ("alpha", messages(&scenario("s-manoeuvre_new-new", 0.0, 11))),
+        ("bravo", messages(&scenario("s-manoeuvre_new-new", 0.2, 12))),
+        (
+            "charlie",
+            messages(&scenario("s-manoeuvre_new-new", 0.35, 13)),
+        ),
+    ];
+    let rig = rig(Settings::default()).await;
+    let subs = [
+        rig.collect("alpha").await,
+        rig.collect("bravo").await,
+        rig.collect("charlie").await,
+    ];
+    // Interleave: one message of each vessel in turn, through one session.
+    let mut publishers = Vec::new();
+    for (vessel, _) in &trials {
+        let g = rig
+            .input
+            .declare_publisher(format!("asv/{vessel}/gnss"))
+            .congestion_control(zenoh::qos::CongestionControl::Block)
+            .await
+            .unwrap();
+        let a = rig
+            .input
+            .declare_publisher(format!("asv/{vessel}/actuators"))
+            .congestion_control(zenoh::qos::CongestionControl::Block)
+            .await
+            .unwrap();
+        wait_matching(&g).await;
+        wait_matching(&a).await;
+        publishers.push((g, a));
+    }
+    let longest = trials.iter().map(|(_, m)| m.len()).max().unwrap();
+    for k in 0..longest {
+        for (i, (_, msgs)) in trials.iter().enumerate() {
+            if let Some((topic, bytes)) = msgs.get(k) {
+                let p = if *topic == "gnss" {
+                    &publishers[i].0
+                } else {
+                    &publishers[i].1
+                };
+                p.put(bytes.clone()).await.unwrap();
+            }
+        }
+    }
+    rig.stop().await;
+    for (i, (vessel, msgs)) in trials.iter().enumerate() {
+        let expected = offline(msgs);
+        let samples = drain(&subs[i]);
+        assert!(
+            samples
+                .iter()
+                .all(|s| s.key_expr().as_str().starts_with(&format!("asv/{vessel}/")))
+        );
+        let fault = last_fault(&samples);
+        assert_eq!(fault.vessel, *vessel);
+        let offline_fault = FaultMessage::new(
+            vessel,
+            &expected.fault_report(expected.state_report().unwrap().time_s),
+            true,
+        );
+        println!(
+            "{vessel}: port {:.3?} starboard {:.3?}",
+            fault.thrusters.port.loss, fault.thrusters.starboard.loss
+        );
+        assert_eq!(fault.thrusters, offline_fault.thrusters, "{vessel}");
+        assert_eq!(
+            states(&samples).last().unwrap(),
+            &StateMessage::new(vessel, &expected.state_report().unwrap(), false, true)
+        );
+    }
+}
+
+/// A table of bad inputs, each refused with its reason counted; the
+/// estimates at the end are exactly those of the good messages alone.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bad_inputs_are_refused_with_their_reasons_and_change_nothing() {
+    let run = scenario("s-manoeuvre_new-broken", 0.18, 21);
+    let good = messages(&run);
+    let expected = offline(&good);
+    // A fix from the middle of the trial, to build bad ones from.
+    let (split, _) = good
+        .iter()
+        .enumerate()
+        .filter(|(_, (t, _))| *t == "gnss")
+        .nth(100)
+        .unwrap();
+    let last_good: serde_json::Value = serde_json::from_slice(&good[split].1).unwrap();
+    let with = |f: &dyn Fn(&mut serde_json::Value)| {
+        let mut v = last_good.clone();
+        f(&mut v);
+        serde_json::to_vec(&v).unwrap()
+    };
+    let time_of = |v: &serde_json::Value| v["time"].as_str().unwrap().to_string();
+    let earlier = time_of(&serde_json::from_slice(&good[split - 4].1).unwrap());
+    let lat = last_good["lat_deg"].as_f64().unwrap();
+    // The next good fix's time, to place the jump between fixes.
+    let later_fix: serde_json::Value = serde_json::from_slice(
+        &good
+            .iter()
+            .skip(split + 1)
+            .find(|(t, _)| *t == "gnss")
+            .unwrap()
+            .1,
+    )
+    .unwrap();
+    let table: Vec<(&'static str, &'static str, Vec<u8>)> = vec![
+        ("gnss", "bad_json", b"\x00\xffnot json at all".to_vec()),
+        ("gnss", "bad_json", b"{\"time\":\"2022-05-20T11:10:00Z\",\"lat_deg\":NaN,\"lon_deg\":6.1,\"sog_mps\":1,\"cog_rad\":0}".to_vec()),
+        ("gnss", "out_of_range", with(&|v| v["lat_deg"] = serde_json::json!(95.0))),
+        ("gnss", "out_of_range", with(&|v| v["sog_mps"] = serde_json::json!(-3.0))),
+        ("gnss", "bad_time", with(&|v| v["time"] = serde_json::json!("yesterday at noon"))),
+        ("gnss", "time_backwards", with(&|v| v["time"] = serde_json::json!(earlier.clone()))),
+        ("gnss", "duplicate", good[split].1.clone()),
+        ("gnss", "position_jump", with(&|v| {
+            v["time"] = later_fix["time"].clone();
+            v["lat_deg"] = serde_json::json!(lat + 1000.0 / 111_000.0);
+        })),
+        ("gnss", "payload_too_large", vec![b' '; 10 * 1024 * 1024]),
+        ("actuators", "out_of_range", b"{\"time\":\"2022-05-20T11:10:30Z\",\"rpm\":{\"port\":1e9,\"starboard\":500}}".to_vec()),
+        ("actuators", "no_command", b"{\"time\":\"2022-05-20T11:10:30Z\"}".to_vec()),
+    ];
+    let mut msgs: Vec<(&'static str, Vec<u8>)> = good[..=split].to_vec();
+    for (topic, _, bytes) in &table {
+        msgs.push((topic, bytes.clone()));
+    }
+    msgs.extend_from_slice(&good[split + 1..]);
+
+    let rig = rig(Settings::default()).await;
+    let sub = rig.collect("otter-1").await;
+    rig.publish("otter-1", &msgs).await;
+    // Vessel ids that are not plain names: Zenoh itself refuses a key with a
+    // wildcard; a `/` makes another key that the daemon never subscribed to;
+    // other characters reach the daemon and are refused there.
+    assert!(
+        rig.input
+            .put("asv/a*b/gnss", good[split].1.clone())
+            .await
+            .is_err()
+    );
+    let sneaky = rig
+        .input
+        .declare_publisher("asv/bad.id/gnss")
+        .await
+        .unwrap();
+    wait_matching(&sneaky).await;
+    sneaky.put(good[split].1.clone()).await.unwrap();
+    rig.input
+        .put("asv/a/b/gnss", good[split].1.clone())
+        .await
+        .unwrap();
+    let summary = rig.stop().await;
+
+    let counters = &summary.vessels["otter-1"];
+    println!(
+        "rejected by reason: {:?}; refused by the daemon: {:?}",
+        counters.rejected, summary.refused.rejected
+    );
+    let mut want = std::collections::BTreeMap::<String, u64>::new();
+    for (_, reason, _) in &table {
+        *want.entry(reason.to_string()).or_default() += 1;
+    }
+    assert_eq!(counters.rejected, want);
+    assert_eq!(summary.refused.rejected.get("bad_key"), Some(&1));
+    assert_eq!(
+        summary.vessels.len(),
+        1,
+        "no twin for a bad id: {:?}",
+        summary.vessels.keys()
+    );
+    let fault = last_fault(&drain(&sub));
+    let offline_fault = FaultMessage::new(
+        "otter-1",
+        &expected.fault_report(expected.state_report().unwrap().time_s),
+        true,
+    );
+    assert_eq!(fault.thrusters, offline_fault.thrusters);
+}
