@@ -1,9 +1,17 @@
 //! `twin`: the offline command-line tool of the USV twin. Parses the command
-//! line and calls the library (`twin_cli`).
+//! line and calls the library (`twin_cli`); errors leave as one line,
+//! `error: context: cause: ...`, with exit status 1.
 
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
 use clap::{Parser, Subcommand};
+use twin_cli::analyze::{AnalyzeOptions, analyze_path, load_truth, parse_source};
+use twin_cli::simulate::{OutputFormat, SimulateRequest, simulate_to_files};
 
-/// The USV twin, offline: simulate trials, analyse and diagnose logs, report.
+/// The USV twin, offline: simulate trials, analyse logs, report.
 #[derive(Debug, Parser)]
 #[command(name = "twin", version, about)]
 struct Cli {
@@ -13,7 +21,41 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Reports generated from the simulator (the README's result tables).
+    /// Runs a simulator scenario and writes what its sensors measured as a
+    /// log (NMEA 0183 or JSON lines), and optionally the true state.
+    Simulate {
+        /// The scenario file (TOML, see config/scenarios/README.md).
+        #[arg(long)]
+        scenario: PathBuf,
+        /// The log to write: .nmea/.log/.txt for NMEA 0183, .jsonl for JSON lines.
+        #[arg(long)]
+        out: PathBuf,
+        /// The true state as JSON lines (one sample per GNSS instant).
+        #[arg(long)]
+        truth: Option<PathBuf>,
+        /// The log format, overriding the file name: nmea or jsonl.
+        #[arg(long, value_parser = ["nmea", "jsonl"])]
+        format: Option<String>,
+    },
+    /// Runs the twin over a log (NMEA 0183, canboat NMEA 2000 or JSON lines)
+    /// and reports its estimates, their quality and the thruster faults.
+    Analyze {
+        /// The log.
+        log: PathBuf,
+        /// Print one JSON object (schema: twin_cli::analyze) instead of text.
+        #[arg(long)]
+        json: bool,
+        /// Write SVG figures (track, faults, prediction) into this directory.
+        #[arg(long)]
+        plot: Option<PathBuf>,
+        /// GNSS position source: best, an NMEA 2000 address, or an NMEA 0183 talker.
+        #[arg(long, default_value = "best")]
+        source: String,
+        /// A truth file (from `twin simulate --truth`) to score the estimates.
+        #[arg(long)]
+        truth: Option<PathBuf>,
+    },
+    /// Reports (markdown tables for the README).
     Report {
         #[command(subcommand)]
         what: Report,
@@ -29,15 +71,124 @@ enum Report {
         #[arg(long, default_value_t = 3)]
         seeds: u64,
     },
+    /// `twin analyze` over every real log of a directory (markdown table).
+    RealLogs {
+        /// The directory of logs.
+        #[arg(long, default_value = twin_cli::real_logs::DEFAULT_DIR)]
+        dir: PathBuf,
+    },
 }
 
-fn main() -> anyhow::Result<()> {
-    let cli = Cli::parse();
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {}", one_line(&e));
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// The error and its causes on one line, each cause once (a library error
+/// that quotes its source in its own message is not repeated).
+fn one_line(e: &anyhow::Error) -> String {
+    let mut line = e.to_string();
+    for cause in e.chain().skip(1) {
+        let text = cause.to_string();
+        if !line.contains(&text) {
+            line.push_str(": ");
+            line.push_str(&text);
+        }
+    }
+    line
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Simulate {
+            scenario,
+            out,
+            truth,
+            format,
+        } => {
+            let format = format
+                .map(|f| f.parse::<OutputFormat>())
+                .transpose()
+                .context("--format")?;
+            let request = SimulateRequest {
+                scenario: scenario.clone(),
+                out: out.clone(),
+                format,
+                truth: truth.clone(),
+            };
+            let summary = simulate_to_files(&request)
+                .with_context(|| format!("simulating {}", scenario.display()))?;
+            eprintln!(
+                "wrote {} ({} lines: {} fixes, {} with heading, {} shaft-speed samples{}){}",
+                out.display(),
+                summary.lines,
+                summary.fixes,
+                summary.fixes_with_heading,
+                summary.propeller_samples,
+                if summary.fixes_without_course > 0 {
+                    format!(
+                        "; {} fixes without COG/SOG left out (JSON lines require them)",
+                        summary.fixes_without_course
+                    )
+                } else {
+                    String::new()
+                },
+                truth
+                    .map(|t| format!(
+                        " and {} ({} truth samples)",
+                        t.display(),
+                        summary.truth_samples
+                    ))
+                    .unwrap_or_default()
+            );
+        }
+        Command::Analyze {
+            log,
+            json,
+            plot,
+            source,
+            truth,
+        } => {
+            let mut options = AnalyzeOptions {
+                source: parse_source(&source)?,
+                keep_series: plot.is_some(),
+                ..AnalyzeOptions::default()
+            };
+            if let Some(t) = &truth {
+                options.truth = Some(load_truth(t)?);
+            }
+            let analysis = analyze_path(&log, &options)
+                .with_context(|| format!("analysing {}", log.display()))?;
+            let mut stdout = std::io::stdout().lock();
+            if json {
+                writeln!(stdout, "{}", analysis.to_json())?;
+            } else {
+                write!(stdout, "{}", analysis.to_text())?;
+            }
+            if let Some(dir) = plot {
+                let paths = twin_cli::plots::write_plots(&analysis, &dir)
+                    .with_context(|| format!("writing figures into {}", dir.display()))?;
+                for p in paths {
+                    eprintln!("wrote {}", p.display());
+                }
+            }
+        }
         Command::Report {
             what: Report::Trials { seeds },
         } => {
             print!("{}", twin_cli::trials::markdown_report(seeds));
+        }
+        Command::Report {
+            what: Report::RealLogs { dir },
+        } => {
+            let logs = twin_cli::real_logs::analyze_dir(&dir, &AnalyzeOptions::default())
+                .with_context(|| format!("analysing the logs in {}", dir.display()))?;
+            print!("{}", twin_cli::real_logs::markdown_table(&logs));
         }
     }
     Ok(())

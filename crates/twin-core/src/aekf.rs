@@ -70,7 +70,8 @@ pub struct AekfConfig<const N: usize, const M: usize, const P: usize> {
     /// `lambda = exp(-dt / tau)`. The seed's `lambda = 0.995` is `tau = 40 s` at
     /// `dt = 0.2 s` and `tau = 0.2 s` at `dt = 1 ms`.
     pub forgetting_time_constant_s: f64,
-    /// Initial fault covariance `S(0)` (the seed: `0.1 I`).
+    /// Initial fault covariance `S(0)` (the seed: `0.1 I`); zero freezes the
+    /// faults at their initial values.
     pub initial_fault_covariance: SMatrix<f64, P, P>,
     /// Anti-windup: a fault component forgets at the full rate while the
     /// information it receives per step is at least this fraction of the
@@ -148,7 +149,9 @@ impl<const N: usize, const M: usize, const P: usize> AekfState<N, M, P> {
         std::array::from_fn(|i| self.recent_information[i] >= needed)
     }
 
-    /// True if every number is finite and the covariances have positive diagonals.
+    /// True if every number is finite, the state covariance has a positive
+    /// diagonal and the fault covariance a non-negative one (zero when the
+    /// faults are frozen).
     pub fn is_sane(&self) -> bool {
         self.x.iter().all(|v| v.is_finite())
             && self.p.iter().all(|v| v.is_finite())
@@ -160,7 +163,7 @@ impl<const N: usize, const M: usize, const P: usize> AekfState<N, M, P> {
             && self.process_noise_density.iter().all(|v| v.is_finite())
             && self.measurement_noise.iter().all(|v| v.is_finite())
             && self.p.diagonal().iter().all(|v| *v > 0.0)
-            && self.s.diagonal().iter().all(|v| *v > 0.0)
+            && self.s.diagonal().iter().all(|v| *v >= 0.0)
     }
 }
 
@@ -255,7 +258,10 @@ where
                 which: "measurement noise R",
             });
         }
-        if cholesky(&config.initial_fault_covariance).is_none() {
+        // S(0) = 0 freezes the faults at their initial values: a model that
+        // estimates no faults (the nominal model of `diagnose`).
+        let s0 = config.initial_fault_covariance;
+        if s0.iter().any(|v| *v != 0.0) && cholesky(&s0).is_none() {
             return Err(AekfError::NotPositiveDefinite {
                 which: "initial fault covariance S(0)",
             });

@@ -4,6 +4,8 @@
 //! - [`settings`]: the daemon's own settings (`config/twind.toml`), raw and
 //!   validated.
 //! - [`vessel`]: one task per vessel owning that vessel's twin.
+//! - [`demo`]: `twind --demo`, the daemon with bundled trials replayed
+//!   through an embedded peer.
 //! - [`persist`]: calibration files saved and restored per vessel.
 //! - [`stats`]: counting and rate-limited logging of rejections.
 //! - [`run`] (here): the dispatcher: one Zenoh subscriber for every input
@@ -25,6 +27,7 @@
 //! at most once a minute per reason. Messages for vessel ids that are not
 //! plain names are refused and counted by the daemon.
 
+pub mod demo;
 pub mod persist;
 pub mod settings;
 pub mod stats;
@@ -47,6 +50,20 @@ use crate::vessel::{VesselEvent, VesselTask};
 
 /// The latest state payload of every vessel, for the queryable.
 pub type LatestStates = Arc<RwLock<HashMap<String, Vec<u8>>>>;
+
+/// One output as published, handed to in-process listeners (the web page).
+#[derive(Debug, Clone)]
+pub struct OutputEvent {
+    /// Vessel id.
+    pub vessel: String,
+    /// Which output topic.
+    pub topic: Topic,
+    /// The JSON payload.
+    pub json: Arc<str>,
+}
+
+/// Where outputs are copied for in-process listeners; `None` copies nothing.
+pub type OutputTap = Option<tokio::sync::broadcast::Sender<OutputEvent>>;
 
 /// What a run did, for the caller's final log line and for tests.
 #[derive(Debug, Default, Clone)]
@@ -73,8 +90,19 @@ pub async fn run(
     session: Session,
     shutdown: CancellationToken,
 ) -> anyhow::Result<RunSummary> {
+    run_with_tap(settings, session, shutdown, None, LatestStates::default()).await
+}
+
+/// [`run`], also copying every output to `tap` and keeping the latest states
+/// in `latest` (shared with the web page).
+pub async fn run_with_tap(
+    settings: Settings,
+    session: Session,
+    shutdown: CancellationToken,
+    tap: OutputTap,
+    latest: LatestStates,
+) -> anyhow::Result<RunSummary> {
     let settings = Arc::new(settings);
-    let latest: LatestStates = Arc::default();
     let subscriber = session
         .declare_subscriber(input_key_expr(&settings))
         .with(FifoChannel::new(4096))
@@ -194,7 +222,13 @@ pub async fn run(
                     continue;
                 }
                 let (tx, rx) = mpsc::channel(settings.vessels.queue_depth);
-                let task = VesselTask::new(id, settings.clone(), session.clone(), latest.clone());
+                let task = VesselTask::new(
+                    id,
+                    settings.clone(),
+                    session.clone(),
+                    latest.clone(),
+                    tap.clone(),
+                );
                 let done = done_tx.clone();
                 let name = vessel.clone();
                 tracker.spawn(async move {

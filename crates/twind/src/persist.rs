@@ -116,7 +116,8 @@ impl CalibrationFile {
         }
         let decision = |i: usize| -> Result<ThrusterDecision, String> {
             Ok(ThrusterDecision {
-                status: status_from(&self.status[i]).ok_or_else(|| format!("unknown status {:?}", self.status[i]))?,
+                status: status_from(&self.status[i])
+                    .ok_or_else(|| format!("unknown status {:?}", self.status[i]))?,
                 onset_time_s: self.onset_time_s[i],
             })
         };

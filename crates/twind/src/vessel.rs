@@ -36,10 +36,10 @@ use zenoh::Session;
 use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
 
-use crate::LatestStates;
 use crate::persist;
 use crate::settings::Settings;
 use crate::stats::Counters;
+use crate::{LatestStates, OutputEvent, OutputTap};
 
 /// What the dispatcher hands a vessel's task.
 #[derive(Debug)]
@@ -81,6 +81,7 @@ pub struct VesselTask {
     settings: Arc<Settings>,
     session: Session,
     latest: LatestStates,
+    tap: OutputTap,
     twin: VesselTwin,
     nmea: NmeaDecoder,
     assembler: FixAssembler,
@@ -100,6 +101,7 @@ impl VesselTask {
         settings: Arc<Settings>,
         session: Session,
         latest: LatestStates,
+        tap: OutputTap,
     ) -> Self {
         let mut twin =
             VesselTwin::new(settings.twin).expect("the settings' twin configuration was validated");
@@ -123,6 +125,7 @@ impl VesselTask {
             settings,
             session,
             latest,
+            tap,
             twin,
             nmea: NmeaDecoder::new(ReadOptions::default()),
             assembler,
@@ -317,7 +320,8 @@ impl VesselTask {
         let vessel = self.id.as_str();
         let state = StateMessage::new(vessel, &out.state, false, self.replay);
         self.put_state(&state, p).await;
-        put_json(
+        self.put_json(
+            Topic::TwinFault,
             &p.fault,
             &FaultMessage::new(vessel, &out.faults, self.replay),
         )
@@ -343,7 +347,7 @@ impl VesselTask {
             alarm.what,
             alarm.confidence
         );
-        put_json(&p.alarm, &alarm).await;
+        self.put_json(Topic::TwinAlarm, &p.alarm, &alarm).await;
     }
 
     async fn publish_prediction(&self, p: &Publishers) {
@@ -363,7 +367,8 @@ impl VesselTask {
             &points,
             self.replay,
         );
-        put_json(&p.prediction, &msg).await;
+        self.put_json(Topic::TwinPrediction, &p.prediction, &msg)
+            .await;
     }
 
     async fn put_state(&self, state: &StateMessage, p: &Publishers) {
@@ -373,8 +378,39 @@ impl VesselTask {
         if let Ok(mut map) = self.latest.write() {
             map.insert(self.id.as_str().to_string(), bytes.clone());
         }
+        self.tap_out(Topic::TwinState, &bytes);
         if let Err(e) = p.state.put(bytes).await {
             tracing::warn!(vessel = self.id.as_str(), "state not published: {e}");
+        }
+    }
+
+    /// Hands an output to the in-process listeners (the web page), if any.
+    fn tap_out(&self, topic: Topic, bytes: &[u8]) {
+        if let Some(tx) = &self.tap
+            && tx.receiver_count() > 0
+        {
+            let _ = tx.send(OutputEvent {
+                vessel: self.id.as_str().to_string(),
+                topic,
+                json: String::from_utf8_lossy(bytes).into(),
+            });
+        }
+    }
+
+    async fn put_json<T: serde::Serialize>(
+        &self,
+        topic: Topic,
+        publisher: &Publisher<'static>,
+        value: &T,
+    ) {
+        match serde_json::to_vec(value) {
+            Ok(bytes) => {
+                self.tap_out(topic, &bytes);
+                if let Err(e) = publisher.put(bytes).await {
+                    tracing::warn!(key = %publisher.key_expr(), "not published: {e}");
+                }
+            }
+            Err(e) => tracing::error!("cannot encode a payload: {e}"),
         }
     }
 
@@ -385,7 +421,8 @@ impl VesselTask {
         let msg = StateMessage::new(self.id.as_str(), &state, stale, self.replay);
         self.put_state(&msg, p).await;
         let faults = self.twin.fault_report(state.time_s);
-        put_json(
+        self.put_json(
+            Topic::TwinFault,
             &p.fault,
             &FaultMessage::new(self.id.as_str(), &faults, self.replay),
         )
@@ -418,17 +455,7 @@ impl VesselTask {
     }
 
     async fn publish_stats(&self, p: &Publishers) {
-        put_json(&p.stats, &self.stats_message()).await;
-    }
-}
-
-async fn put_json<T: serde::Serialize>(publisher: &Publisher<'static>, value: &T) {
-    match serde_json::to_vec(value) {
-        Ok(bytes) => {
-            if let Err(e) = publisher.put(bytes).await {
-                tracing::warn!(key = %publisher.key_expr(), "not published: {e}");
-            }
-        }
-        Err(e) => tracing::error!("cannot encode a payload: {e}"),
+        self.put_json(Topic::TwinStats, &p.stats, &self.stats_message())
+            .await;
     }
 }

@@ -36,6 +36,7 @@ use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
 
 use crate::geodesy::wrap_pi;
 use crate::model::{Model, Observation, Transition};
+use crate::models::effects::{Kinematics, SensorEffects, gnss_measurement};
 use crate::otter::OtterParams;
 
 /// Longest integration sub-step, seconds.
@@ -90,6 +91,8 @@ pub mod meas {
 pub struct OtterTwin<const N: usize> {
     /// The vessel's parameters.
     pub params: OtterParams,
+    /// Effects on the measurement (none by default).
+    pub effects: SensorEffects,
     /// `M^-1`, computed once.
     mass_inverse: Matrix3<f64>,
 }
@@ -103,8 +106,15 @@ impl<const N: usize> OtterTwin<N> {
             .unwrap_or_else(Matrix3::identity);
         Self {
             params,
+            effects: SensorEffects::default(),
             mass_inverse,
         }
+    }
+
+    /// The same twin with effects on its measurement.
+    pub fn with_effects(mut self, effects: SensorEffects) -> Self {
+        self.effects = effects;
+        self
     }
 }
 
@@ -324,7 +334,41 @@ impl<const N: usize> OtterTwin<N> {
     }
 
     /// The measurement model on the 8-state vector.
+    /// The measurement with effects, its Jacobian by central differences.
+    fn observe8_with_effects(&self, x: &SVector<f64, 8>) -> Observation<8, 5> {
+        let h = |x: &SVector<f64, 8>| {
+            let (s, c) = x[idx::PSI].sin_cos();
+            let k = Kinematics {
+                north_m: x[idx::NORTH],
+                east_m: x[idx::EAST],
+                heading_rad: x[idx::PSI],
+                yaw_rate_radps: x[idx::R],
+                ground_north_mps: c * x[idx::U] - s * x[idx::V] + x[idx::CURRENT_NORTH],
+                ground_east_mps: s * x[idx::U] + c * x[idx::V] + x[idx::CURRENT_EAST],
+            };
+            SVector::<f64, 5>::from(gnss_measurement(&k, &self.effects))
+        };
+        let predicted = h(x);
+        let mut jacobian = SMatrix::<f64, 5, 8>::zeros();
+        for j in 0..8 {
+            let step = 1e-6 * (1.0 + x[j].abs());
+            let (mut xp, mut xm) = (*x, *x);
+            xp[j] += step;
+            xm[j] -= step;
+            let mut d = (h(&xp) - h(&xm)) / (2.0 * step);
+            d[meas::COG] = wrap_pi(h(&xp)[meas::COG] - h(&xm)[meas::COG]) / (2.0 * step);
+            jacobian.set_column(j, &d);
+        }
+        Observation {
+            predicted,
+            jacobian,
+        }
+    }
+
     fn observe8(&self, x: &SVector<f64, 8>) -> Observation<8, 5> {
+        if !self.effects.is_neutral() {
+            return self.observe8_with_effects(x);
+        }
         let (psi, u, v) = (x[idx::PSI], x[idx::U], x[idx::V]);
         let (s, c) = psi.sin_cos();
         let vn = c * u - s * v + x[idx::CURRENT_NORTH];
@@ -586,6 +630,25 @@ mod tests {
             f_filter < 1e-2 && psi_filter < 1e-3,
             "{f_filter} {psi_filter}"
         );
+    }
+
+    #[test]
+    fn effects_agree_with_the_analytic_path_when_neutral_and_shift_the_fix() {
+        let twin = OtterTwin::<8>::default();
+        let x = state();
+        let plain = twin.observe8(&x);
+        // Forcing the numerical path with neutral effects gives the same.
+        let numeric = twin.observe8_with_effects(&x);
+        assert!((plain.predicted - numeric.predicted).amax() < 1e-12);
+        assert!((plain.jacobian - numeric.jacobian).amax() < 1e-6);
+        let moved = twin.with_effects(SensorEffects {
+            antenna_m: [2.0, 0.0],
+            ..Default::default()
+        });
+        let m = moved.observe8(&x);
+        let (s, c) = x[idx::PSI].sin_cos();
+        assert!((m.predicted[meas::NORTH] - x[idx::NORTH] - 2.0 * c).abs() < 1e-12);
+        assert!((m.predicted[meas::EAST] - x[idx::EAST] - 2.0 * s).abs() < 1e-12);
     }
 
     #[test]

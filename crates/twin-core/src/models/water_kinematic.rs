@@ -1,0 +1,189 @@
+//! A kinematic model of any vessel moving through water, for logs without
+//! propeller data (`twin diagnose` on real logs): it needs no vessel
+//! parameters, and it separates the vessel's motion through the water from
+//! the water's motion over ground.
+//!
+//! State `[north_m, east_m, heading_rad, speed_through_water_mps,
+//! yaw_rate_radps, current_north_mps, current_east_mps]`; speed and yaw rate
+//! wander as random walks (the vessel's own manoeuvres, whatever drives
+//! them), the current is constant up to a slow random walk. The model with
+//! the current held at zero (zero initial variance and zero process noise on
+//! it) is the nominal one. Measurement `[north_m, east_m, sog_mps, cog_rad,
+//! heading_rad, stw_mps]`, any of them missing, with the sensor effects of
+//! [`crate::models::effects`].
+//!
+//! ```text
+//! north' = u cos(psi) + c_n,  east' = u sin(psi) + c_e,  psi' = r,  u' = r' = c' = 0 (+ noise)
+//! ```
+//! integrated over a step with the heading at the step's midpoint.
+
+use nalgebra::{SMatrix, SVector};
+
+use crate::geodesy::wrap_pi;
+use crate::model::{Model, Observation, Transition};
+use crate::models::effects::{Kinematics, SensorEffects, gnss_measurement};
+
+/// Index of each state component.
+pub mod idx {
+    /// North, m.
+    pub const NORTH: usize = 0;
+    /// East, m.
+    pub const EAST: usize = 1;
+    /// Heading, rad.
+    pub const PSI: usize = 2;
+    /// Speed through the water along the heading, m/s.
+    pub const U: usize = 3;
+    /// Yaw rate, rad/s.
+    pub const R: usize = 4;
+    /// Current, north component, m/s.
+    pub const CURRENT_NORTH: usize = 5;
+    /// Current, east component, m/s.
+    pub const CURRENT_EAST: usize = 6;
+}
+
+/// Index of each measurement component.
+pub mod meas {
+    /// North, m.
+    pub const NORTH: usize = 0;
+    /// East, m.
+    pub const EAST: usize = 1;
+    /// Speed over ground, m/s.
+    pub const SOG: usize = 2;
+    /// Course over ground, rad.
+    pub const COG: usize = 3;
+    /// Heading, rad.
+    pub const HEADING: usize = 4;
+    /// Speed through water, m/s.
+    pub const STW: usize = 5;
+}
+
+/// The model. It has no faults (`P = 0`).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct WaterKinematic {
+    /// Effects on the measurement.
+    pub effects: SensorEffects,
+}
+
+fn kinematics(x: &SVector<f64, 7>) -> Kinematics {
+    let (s, c) = x[idx::PSI].sin_cos();
+    Kinematics {
+        north_m: x[idx::NORTH],
+        east_m: x[idx::EAST],
+        heading_rad: x[idx::PSI],
+        yaw_rate_radps: x[idx::R],
+        ground_north_mps: x[idx::U] * c + x[idx::CURRENT_NORTH],
+        ground_east_mps: x[idx::U] * s + x[idx::CURRENT_EAST],
+    }
+}
+
+impl WaterKinematic {
+    fn measure(&self, x: &SVector<f64, 7>) -> SVector<f64, 6> {
+        let g = gnss_measurement(&kinematics(x), &self.effects);
+        SVector::<f64, 6>::from_column_slice(&[g[0], g[1], g[2], g[3], g[4], x[idx::U]])
+    }
+}
+
+impl Model<7, 6, 0> for WaterKinematic {
+    type Input = ();
+
+    fn transition(
+        &self,
+        x: &SVector<f64, 7>,
+        _input: &(),
+        _theta: &SVector<f64, 0>,
+        dt_s: f64,
+    ) -> Transition<7, 0> {
+        let (psi, u, r) = (x[idx::PSI], x[idx::U], x[idx::R]);
+        let mid = psi + 0.5 * r * dt_s;
+        let (s, c) = mid.sin_cos();
+        let mut next = *x;
+        next[idx::NORTH] += dt_s * (u * c + x[idx::CURRENT_NORTH]);
+        next[idx::EAST] += dt_s * (u * s + x[idx::CURRENT_EAST]);
+        next[idx::PSI] = wrap_pi(psi + r * dt_s);
+        let mut f = SMatrix::<f64, 7, 7>::identity();
+        f[(idx::NORTH, idx::PSI)] = -dt_s * u * s;
+        f[(idx::NORTH, idx::U)] = dt_s * c;
+        f[(idx::NORTH, idx::R)] = -dt_s * u * s * 0.5 * dt_s;
+        f[(idx::NORTH, idx::CURRENT_NORTH)] = dt_s;
+        f[(idx::EAST, idx::PSI)] = dt_s * u * c;
+        f[(idx::EAST, idx::U)] = dt_s * s;
+        f[(idx::EAST, idx::R)] = dt_s * u * c * 0.5 * dt_s;
+        f[(idx::EAST, idx::CURRENT_EAST)] = dt_s;
+        f[(idx::PSI, idx::R)] = dt_s;
+        Transition {
+            next,
+            jacobian: f,
+            fault_sensitivity: SMatrix::zeros(),
+        }
+    }
+
+    fn observe(&self, x: &SVector<f64, 7>) -> Observation<7, 6> {
+        let predicted = self.measure(x);
+        let mut jacobian = SMatrix::<f64, 6, 7>::zeros();
+        for j in 0..7 {
+            let step = 1e-6 * (1.0 + x[j].abs());
+            let (mut xp, mut xm) = (*x, *x);
+            xp[j] += step;
+            xm[j] -= step;
+            let (hp, hm) = (self.measure(&xp), self.measure(&xm));
+            let mut d = (hp - hm) / (2.0 * step);
+            d[meas::COG] = wrap_pi(hp[meas::COG] - hm[meas::COG]) / (2.0 * step);
+            d[meas::HEADING] = wrap_pi(hp[meas::HEADING] - hm[meas::HEADING]) / (2.0 * step);
+            jacobian.set_column(j, &d);
+        }
+        Observation {
+            predicted,
+            jacobian,
+        }
+    }
+
+    fn measurement_angles(&self) -> [bool; 6] {
+        [false, false, false, true, true, false]
+    }
+
+    fn state_angles(&self) -> [bool; 7] {
+        [false, false, true, false, false, false, false]
+    }
+
+    fn state_names(&self) -> [&'static str; 7] {
+        [
+            "north_m",
+            "east_m",
+            "heading_rad",
+            "speed_through_water_mps",
+            "yaw_rate_radps",
+            "current_north_mps",
+            "current_east_mps",
+        ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn jacobian_matches_finite_differences_and_current_moves_the_track() {
+        let m = WaterKinematic::default();
+        let x = SVector::<f64, 7>::from_column_slice(&[1.0, 2.0, 0.7, 2.0, 0.05, 0.2, -0.1]);
+        let t = m.transition(&x, &(), &SVector::zeros(), 0.5);
+        let eps = 1e-6;
+        for j in 0..7 {
+            let (mut xp, mut xm) = (x, x);
+            xp[j] += eps;
+            xm[j] -= eps;
+            let d = (m.transition(&xp, &(), &SVector::zeros(), 0.5).next
+                - m.transition(&xm, &(), &SVector::zeros(), 0.5).next)
+                / (2.0 * eps);
+            for i in 0..7 {
+                assert!((d[i] - t.jacobian[(i, j)]).abs() < 1e-6, "F[{i},{j}]");
+            }
+        }
+        // With the vessel stopped in the water, the current alone moves it.
+        let still = SVector::<f64, 7>::from_column_slice(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.3, 0.4]);
+        let o = m.observe(&m.transition(&still, &(), &SVector::zeros(), 1.0).next);
+        assert!((o.predicted[meas::SOG] - 0.5).abs() < 1e-12);
+        assert!((o.predicted[meas::STW]).abs() < 1e-12);
+        assert!((o.predicted[meas::NORTH] - 0.3).abs() < 1e-12);
+    }
+}
