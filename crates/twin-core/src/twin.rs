@@ -15,7 +15,10 @@
 //!
 //! Timing rules (documented for the daemon):
 //! - a fix must be newer than the last accepted fix: an equal time is a
-//!   [`Rejection::Duplicate`], an older one [`Rejection::TimeWentBackwards`];
+//!   [`Rejection::Duplicate`], an older one [`Rejection::TimeWentBackwards`],
+//!   except one older by more than [`GatingConfig::reinitialise_after_gap_s`]:
+//!   that is a new track (a restarted source, a replay starting over) and
+//!   restarts the state estimate, keeping the calibration;
 //! - the filter steps on message time; a gap longer than
 //!   [`GatingConfig::reinitialise_after_gap_s`] restarts the state estimate
 //!   from the next fix (the calibration, i.e. the fault estimate, is kept);
@@ -547,10 +550,15 @@ impl VesselTwin {
             if p.time_s == last {
                 return Err(Rejection::Duplicate { time_s: p.time_s });
             }
-            if p.time_s < last {
+            let gap = self.config.gating.reinitialise_after_gap_s;
+            if p.time_s < last && p.time_s >= last - gap {
                 return Err(Rejection::TimeWentBackwards {
                     by_s: last - p.time_s,
                 });
+            }
+            if p.time_s < last - gap {
+                // A new track back in time (see `on_gnss`).
+                self.propellers = PropellerAccumulator::default();
             }
         }
         self.last_propeller_time_s = Some(p.time_s);
@@ -617,7 +625,9 @@ impl VesselTwin {
             if fix.time_s == t {
                 return Err(Rejection::Duplicate { time_s: t });
             }
-            if fix.time_s < t {
+            // Far back is a new track (a restarted source, a looping replay):
+            // the state restarts. A little back is an out-of-order fix.
+            if fix.time_s < t && fix.time_s >= t - self.config.gating.reinitialise_after_gap_s {
                 return Err(Rejection::TimeWentBackwards {
                     by_s: t - fix.time_s,
                 });
@@ -645,8 +655,9 @@ impl VesselTwin {
         if let Some((t, last)) = self.last_fix {
             let dt = fix.time_s - t;
             let distance = (ne.north_m - last.north_m).hypot(ne.east_m - last.east_m);
-            if dt <= g.reinitialise_after_gap_s && distance > g.max_speed_mps * dt + g.jump_slack_m
-            {
+            if dt.abs() > g.reinitialise_after_gap_s {
+                restart = true;
+            } else if distance > g.max_speed_mps * dt + g.jump_slack_m {
                 // Consecutive jumps that agree with each other mean the vessel
                 // really is there (or the receiver re-converged): restart.
                 let consistent = self.jump_run.last().is_none_or(|(tj, pj)| {
@@ -664,8 +675,6 @@ impl VesselTwin {
                     });
                 }
                 restart = true;
-            } else if dt > g.reinitialise_after_gap_s {
-                restart = true;
             }
         }
 
@@ -675,6 +684,11 @@ impl VesselTwin {
         if restart {
             next.seed.state = None;
             next.kinetic.state = None;
+            if self.last_fix.is_some_and(|(t, _)| fix.time_s < t) {
+                // A new track back in time: propeller samples start over too.
+                next.last_propeller_time_s = None;
+                next.propellers = PropellerAccumulator::default();
+            }
         }
         let changes = next.step_estimators(fix, ne, restart)?;
         next.jump_run.clear();
@@ -1210,5 +1224,40 @@ impl VesselTwin {
     /// The seed method's last derived input.
     pub fn seed_last_input(&self) -> KinematicInput {
         self.seed.last_input
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geodesy::LatLon;
+
+    fn fix(time_s: f64, north_m: f64) -> GnssFix {
+        let frame = LocalFrame::new(LatLon { lat_deg: 60.0, lon_deg: 20.0 }).unwrap();
+        GnssFix {
+            time_s,
+            position: frame.to_geodetic(NorthEast { north_m, east_m: 0.0 }),
+            sog_mps: Some(1.5),
+            cog_rad: Some(0.0),
+            heading_rad: None,
+            hdop: None,
+        }
+    }
+
+    #[test]
+    fn time_rules_reject_small_steps_back_and_restart_on_a_new_track() {
+        let mut twin = VesselTwin::new(TwinConfig::default()).unwrap();
+        for k in 0..50 {
+            twin.on_gnss(&fix(1000.0 + 0.2 * k as f64, 0.3 * k as f64)).unwrap();
+        }
+        let last = 1000.0 + 0.2 * 49.0;
+        assert!(matches!(twin.on_gnss(&fix(last, 14.7)), Err(Rejection::Duplicate { .. })));
+        assert!(matches!(twin.on_gnss(&fix(last - 1.0, 14.0)), Err(Rejection::TimeWentBackwards { .. })));
+        // A looping replay starting over, 90 s back in time: a new track.
+        let out = twin.on_gnss(&fix(1000.0 - 90.0, 0.0)).expect("a new track restarts");
+        assert_eq!(out.state.time_s, 910.0);
+        twin.on_gnss(&fix(910.2, 0.3)).unwrap();
+        // A jump of a kilometre in 0.2 s is refused.
+        assert!(matches!(twin.on_gnss(&fix(910.4, 1000.0)), Err(Rejection::Jump { .. })));
     }
 }
