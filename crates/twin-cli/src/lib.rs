@@ -8,6 +8,8 @@
 //!   the vessel twin, streaming; the human summary and the JSON report
 //!   (schema in the module doc), with [`quality`] (innovations, NIS) and
 //!   [`plots`] (SVG figures drawn with [`svg`]).
+//! - [`diagnose`]: `twin diagnose`: what the model gets wrong on a log, the
+//!   cause, the gain on held-out data (text, JSON, SVG).
 //! - [`real_logs`]: `twin report real-logs`: analyze over the real logs, as a
 //!   markdown table.
 //! - [`demo`]: the bundled demo trial (`data/demo/`) and how it is made.
@@ -17,6 +19,7 @@
 
 pub mod analyze;
 pub mod demo;
+pub mod diagnose;
 pub mod plots;
 pub mod quality;
 pub mod real_logs;

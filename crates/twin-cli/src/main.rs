@@ -55,6 +55,21 @@ enum Command {
         #[arg(long)]
         truth: Option<PathBuf>,
     },
+    /// Shows what the twin's model gets wrong on a log, names the cause,
+    /// extends the model and measures the gain on held-out data.
+    Diagnose {
+        /// The log.
+        log: PathBuf,
+        /// Print one JSON object (schema: twin_cli::diagnose) instead of text.
+        #[arg(long)]
+        json: bool,
+        /// Write SVG figures of the residuals before and after into this directory.
+        #[arg(long)]
+        plot: Option<PathBuf>,
+        /// GNSS position source: best, an NMEA 2000 address, or an NMEA 0183 talker.
+        #[arg(long, default_value = "best")]
+        source: String,
+    },
     /// Reports (markdown tables for the README).
     Report {
         #[command(subcommand)]
@@ -172,6 +187,32 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             if let Some(dir) = plot {
                 let paths = twin_cli::plots::write_plots(&analysis, &dir)
+                    .with_context(|| format!("writing figures into {}", dir.display()))?;
+                for p in paths {
+                    eprintln!("wrote {}", p.display());
+                }
+            }
+        }
+        Command::Diagnose {
+            log,
+            json,
+            plot,
+            source,
+        } => {
+            let config = twin_core::diagnose::DiagnoseConfig {
+                threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+                ..Default::default()
+            };
+            let report = twin_cli::diagnose::diagnose_path(&log, parse_source(&source)?, &config)
+                .with_context(|| format!("diagnosing {}", log.display()))?;
+            let mut stdout = std::io::stdout().lock();
+            if json {
+                writeln!(stdout, "{}", serde_json::to_string_pretty(&report)?)?;
+            } else {
+                write!(stdout, "{}", twin_cli::diagnose::render_text(&report))?;
+            }
+            if let Some(dir) = plot {
+                let paths = twin_cli::diagnose::write_plots(&report, &dir)
                     .with_context(|| format!("writing figures into {}", dir.display()))?;
                 for p in paths {
                     eprintln!("wrote {}", p.display());

@@ -11,6 +11,7 @@
 //! - [`aekf`]: the adaptive extended Kalman filter, generic over the model.
 //! - [`predict`]: open-loop forecasts with their uncertainty.
 //! - [`decision`]: nominal / suspect / fault per thruster, with hysteresis.
+//! - [`diagnose`]: what the model gets wrong on a log, the cause, the gain.
 //! - [`twin`]: one vessel's twin, fed measurement by measurement (what the
 //!   daemon and `twin analyze` both run).
 //!
@@ -21,6 +22,7 @@
 
 pub mod aekf;
 pub mod decision;
+pub mod diagnose;
 pub mod geodesy;
 pub mod inputs;
 pub mod linalg;

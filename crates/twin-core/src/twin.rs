@@ -1233,10 +1233,17 @@ mod tests {
     use crate::geodesy::LatLon;
 
     fn fix(time_s: f64, north_m: f64) -> GnssFix {
-        let frame = LocalFrame::new(LatLon { lat_deg: 60.0, lon_deg: 20.0 }).unwrap();
+        let frame = LocalFrame::new(LatLon {
+            lat_deg: 60.0,
+            lon_deg: 20.0,
+        })
+        .unwrap();
         GnssFix {
             time_s,
-            position: frame.to_geodetic(NorthEast { north_m, east_m: 0.0 }),
+            position: frame.to_geodetic(NorthEast {
+                north_m,
+                east_m: 0.0,
+            }),
             sog_mps: Some(1.5),
             cog_rad: Some(0.0),
             heading_rad: None,
@@ -1248,16 +1255,28 @@ mod tests {
     fn time_rules_reject_small_steps_back_and_restart_on_a_new_track() {
         let mut twin = VesselTwin::new(TwinConfig::default()).unwrap();
         for k in 0..50 {
-            twin.on_gnss(&fix(1000.0 + 0.2 * k as f64, 0.3 * k as f64)).unwrap();
+            twin.on_gnss(&fix(1000.0 + 0.2 * k as f64, 0.3 * k as f64))
+                .unwrap();
         }
         let last = 1000.0 + 0.2 * 49.0;
-        assert!(matches!(twin.on_gnss(&fix(last, 14.7)), Err(Rejection::Duplicate { .. })));
-        assert!(matches!(twin.on_gnss(&fix(last - 1.0, 14.0)), Err(Rejection::TimeWentBackwards { .. })));
+        assert!(matches!(
+            twin.on_gnss(&fix(last, 14.7)),
+            Err(Rejection::Duplicate { .. })
+        ));
+        assert!(matches!(
+            twin.on_gnss(&fix(last - 1.0, 14.0)),
+            Err(Rejection::TimeWentBackwards { .. })
+        ));
         // A looping replay starting over, 90 s back in time: a new track.
-        let out = twin.on_gnss(&fix(1000.0 - 90.0, 0.0)).expect("a new track restarts");
+        let out = twin
+            .on_gnss(&fix(1000.0 - 90.0, 0.0))
+            .expect("a new track restarts");
         assert_eq!(out.state.time_s, 910.0);
         twin.on_gnss(&fix(910.2, 0.3)).unwrap();
         // A jump of a kilometre in 0.2 s is refused.
-        assert!(matches!(twin.on_gnss(&fix(910.4, 1000.0)), Err(Rejection::Jump { .. })));
+        assert!(matches!(
+            twin.on_gnss(&fix(910.4, 1000.0)),
+            Err(Rejection::Jump { .. })
+        ));
     }
 }

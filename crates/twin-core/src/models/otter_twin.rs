@@ -35,6 +35,7 @@
 use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
 
 use crate::geodesy::wrap_pi;
+use crate::linalg::mul;
 use crate::model::{Model, Observation, Transition};
 use crate::models::effects::{Kinematics, SensorEffects, gnss_measurement};
 use crate::otter::OtterParams;
@@ -316,10 +317,10 @@ impl<const N: usize> OtterTwin<N> {
             let k1 = self.xdot(&x, &thrust, theta);
             let mid = self.dynamics(&(x + k1 * (0.5 * h)), &thrust, theta, true);
             let ha = mid.a * h;
-            let f_sub = SMatrix::<f64, 8, 8>::identity() + ha + ha * ha * 0.5;
-            let b_sub = (mid.b + ha * mid.b * 0.5) * h;
-            psi = f_sub * psi + b_sub;
-            f = f_sub * f;
+            let f_sub = SMatrix::<f64, 8, 8>::identity() + ha + mul(&ha, &ha) * 0.5;
+            let b_sub = (mid.b + mul(&ha, &mid.b) * 0.5) * h;
+            psi = mul(&f_sub, &psi) + b_sub;
+            f = mul(&f_sub, &f);
             let k2 = mid.xdot;
             let k3 = self.xdot(&(x + k2 * (0.5 * h)), &thrust, theta);
             let k4 = self.xdot(&(x + k3 * h), &thrust, theta);
@@ -350,13 +351,16 @@ impl<const N: usize> OtterTwin<N> {
         };
         let predicted = h(x);
         let mut jacobian = SMatrix::<f64, 5, 8>::zeros();
+        // Forward differences: the Jacobian only steers the gains, and the
+        // measurement is smooth; one evaluation per column.
         for j in 0..8 {
-            let step = 1e-6 * (1.0 + x[j].abs());
-            let (mut xp, mut xm) = (*x, *x);
+            let step = 1e-7 * (1.0 + x[j].abs());
+            let mut xp = *x;
             xp[j] += step;
-            xm[j] -= step;
-            let mut d = (h(&xp) - h(&xm)) / (2.0 * step);
-            d[meas::COG] = wrap_pi(h(&xp)[meas::COG] - h(&xm)[meas::COG]) / (2.0 * step);
+            let hp = h(&xp);
+            let mut d = (hp - predicted) / step;
+            d[meas::COG] = wrap_pi(hp[meas::COG] - predicted[meas::COG]) / step;
+            d[meas::HEADING] = wrap_pi(hp[meas::HEADING] - predicted[meas::HEADING]) / step;
             jacobian.set_column(j, &d);
         }
         Observation {

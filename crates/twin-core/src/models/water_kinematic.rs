@@ -10,10 +10,11 @@
 //! the current held at zero (zero initial variance and zero process noise on
 //! it) is the nominal one. Measurement `[north_m, east_m, sog_mps, cog_rad,
 //! heading_rad, stw_mps]`, any of them missing, with the sensor effects of
-//! [`crate::models::effects`].
+//! [`crate::models::effects`] and a scale on the speed through water.
 //!
 //! ```text
-//! north' = u cos(psi) + c_n,  east' = u sin(psi) + c_e,  psi' = r,  u' = r' = c' = 0 (+ noise)
+//! north' = u cos(psi) - v sin(psi) + c_n,  east' = u sin(psi) + v cos(psi) + c_e,
+//! psi' = r,  u' = r' = c' = 0 (+ noise),   v = k r (sideslip, 0 nominally)
 //! ```
 //! integrated over a step with the heading at the step's midpoint.
 
@@ -58,28 +59,53 @@ pub mod meas {
 }
 
 /// The model. It has no faults (`P = 0`).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WaterKinematic {
-    /// Effects on the measurement.
+    /// Effects on the GNSS and heading measurement.
     pub effects: SensorEffects,
+    /// Reported speed through water divided by the true one (a log's
+    /// calibration; 1 = none).
+    pub stw_scale: f64,
+    /// Sideways speed of the reference point per yaw rate, m/s per rad/s:
+    /// in a turn a hull slides (its course through the water leaves its
+    /// heading in proportion to the turn rate). 0 = none.
+    pub sideslip_m: f64,
 }
 
-fn kinematics(x: &SVector<f64, 7>) -> Kinematics {
-    let (s, c) = x[idx::PSI].sin_cos();
-    Kinematics {
-        north_m: x[idx::NORTH],
-        east_m: x[idx::EAST],
-        heading_rad: x[idx::PSI],
-        yaw_rate_radps: x[idx::R],
-        ground_north_mps: x[idx::U] * c + x[idx::CURRENT_NORTH],
-        ground_east_mps: x[idx::U] * s + x[idx::CURRENT_EAST],
+impl Default for WaterKinematic {
+    fn default() -> Self {
+        Self {
+            effects: SensorEffects::default(),
+            stw_scale: 1.0,
+            sideslip_m: 0.0,
+        }
     }
 }
 
 impl WaterKinematic {
+    fn kinematics(&self, x: &SVector<f64, 7>) -> Kinematics {
+        let (s, c) = x[idx::PSI].sin_cos();
+        let (u, v) = (x[idx::U], self.sideslip_m * x[idx::R]);
+        Kinematics {
+            north_m: x[idx::NORTH],
+            east_m: x[idx::EAST],
+            heading_rad: x[idx::PSI],
+            yaw_rate_radps: x[idx::R],
+            ground_north_mps: u * c - v * s + x[idx::CURRENT_NORTH],
+            ground_east_mps: u * s + v * c + x[idx::CURRENT_EAST],
+        }
+    }
+
     fn measure(&self, x: &SVector<f64, 7>) -> SVector<f64, 6> {
-        let g = gnss_measurement(&kinematics(x), &self.effects);
-        SVector::<f64, 6>::from_column_slice(&[g[0], g[1], g[2], g[3], g[4], x[idx::U]])
+        let g = gnss_measurement(&self.kinematics(x), &self.effects);
+        SVector::<f64, 6>::from_column_slice(&[
+            g[0],
+            g[1],
+            g[2],
+            g[3],
+            g[4],
+            self.stw_scale * x[idx::U],
+        ])
     }
 }
 
@@ -94,20 +120,26 @@ impl Model<7, 6, 0> for WaterKinematic {
         dt_s: f64,
     ) -> Transition<7, 0> {
         let (psi, u, r) = (x[idx::PSI], x[idx::U], x[idx::R]);
+        let v = self.sideslip_m * r;
         let mid = psi + 0.5 * r * dt_s;
         let (s, c) = mid.sin_cos();
         let mut next = *x;
-        next[idx::NORTH] += dt_s * (u * c + x[idx::CURRENT_NORTH]);
-        next[idx::EAST] += dt_s * (u * s + x[idx::CURRENT_EAST]);
+        next[idx::NORTH] += dt_s * (u * c - v * s + x[idx::CURRENT_NORTH]);
+        next[idx::EAST] += dt_s * (u * s + v * c + x[idx::CURRENT_EAST]);
         next[idx::PSI] = wrap_pi(psi + r * dt_s);
+        // Derivatives through the midpoint heading (d mid / d psi = 1,
+        // d mid / d r = dt/2) and the sideslip (d v / d r = sideslip).
+        let dn_dmid = -u * s - v * c;
+        let de_dmid = u * c - v * s;
+        let k = self.sideslip_m;
         let mut f = SMatrix::<f64, 7, 7>::identity();
-        f[(idx::NORTH, idx::PSI)] = -dt_s * u * s;
+        f[(idx::NORTH, idx::PSI)] = dt_s * dn_dmid;
         f[(idx::NORTH, idx::U)] = dt_s * c;
-        f[(idx::NORTH, idx::R)] = -dt_s * u * s * 0.5 * dt_s;
+        f[(idx::NORTH, idx::R)] = dt_s * (dn_dmid * 0.5 * dt_s - k * s);
         f[(idx::NORTH, idx::CURRENT_NORTH)] = dt_s;
-        f[(idx::EAST, idx::PSI)] = dt_s * u * c;
+        f[(idx::EAST, idx::PSI)] = dt_s * de_dmid;
         f[(idx::EAST, idx::U)] = dt_s * s;
-        f[(idx::EAST, idx::R)] = dt_s * u * c * 0.5 * dt_s;
+        f[(idx::EAST, idx::R)] = dt_s * (de_dmid * 0.5 * dt_s + k * c);
         f[(idx::EAST, idx::CURRENT_EAST)] = dt_s;
         f[(idx::PSI, idx::R)] = dt_s;
         Transition {
@@ -120,15 +152,16 @@ impl Model<7, 6, 0> for WaterKinematic {
     fn observe(&self, x: &SVector<f64, 7>) -> Observation<7, 6> {
         let predicted = self.measure(x);
         let mut jacobian = SMatrix::<f64, 6, 7>::zeros();
+        // Forward differences, one evaluation per column (the Jacobian only
+        // steers the gains).
         for j in 0..7 {
-            let step = 1e-6 * (1.0 + x[j].abs());
-            let (mut xp, mut xm) = (*x, *x);
+            let step = 1e-7 * (1.0 + x[j].abs());
+            let mut xp = *x;
             xp[j] += step;
-            xm[j] -= step;
-            let (hp, hm) = (self.measure(&xp), self.measure(&xm));
-            let mut d = (hp - hm) / (2.0 * step);
-            d[meas::COG] = wrap_pi(hp[meas::COG] - hm[meas::COG]) / (2.0 * step);
-            d[meas::HEADING] = wrap_pi(hp[meas::HEADING] - hm[meas::HEADING]) / (2.0 * step);
+            let hp = self.measure(&xp);
+            let mut d = (hp - predicted) / step;
+            d[meas::COG] = wrap_pi(hp[meas::COG] - predicted[meas::COG]) / step;
+            d[meas::HEADING] = wrap_pi(hp[meas::HEADING] - predicted[meas::HEADING]) / step;
             jacobian.set_column(j, &d);
         }
         Observation {
@@ -164,7 +197,10 @@ mod tests {
 
     #[test]
     fn jacobian_matches_finite_differences_and_current_moves_the_track() {
-        let m = WaterKinematic::default();
+        let m = WaterKinematic {
+            sideslip_m: 1.5,
+            ..WaterKinematic::default()
+        };
         let x = SVector::<f64, 7>::from_column_slice(&[1.0, 2.0, 0.7, 2.0, 0.05, 0.2, -0.1]);
         let t = m.transition(&x, &(), &SVector::zeros(), 0.5);
         let eps = 1e-6;
@@ -180,6 +216,7 @@ mod tests {
             }
         }
         // With the vessel stopped in the water, the current alone moves it.
+        let m = WaterKinematic::default();
         let still = SVector::<f64, 7>::from_column_slice(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.3, 0.4]);
         let o = m.observe(&m.transition(&still, &(), &SVector::zeros(), 1.0).next);
         assert!((o.predicted[meas::SOG] - 0.5).abs() < 1e-12);

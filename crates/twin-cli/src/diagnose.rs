@@ -1,0 +1,577 @@
+//! `twin diagnose LOG`: what the twin's model gets wrong on a log, the named
+//! cause, the extended model and the gain on held-out data
+//! ([`twin_core::diagnose`] does the work; this module reads the log, adds
+//! the instrument's own current where the log has one, and renders text,
+//! JSON and SVG).
+//!
+//! # The JSON schema (`--json`), `"schema": "twin-diagnose/1"`
+//! ```text
+//! schema          "twin-diagnose/1"
+//! log             the path given
+//! base_model      "kinetic" (the Otter's twin, propeller data) | "water" (kinematic, any vessel)
+//! steps, training_steps, heldout_steps
+//! measured        {heading, speed_through_water, propellers}: what the log has
+//! nominal         residuals of the nominal model on the held-out part (below)
+//! extended        the same with every finding
+//! findings        [{cause, parameters {name: value | "port"/"starboard"},
+//!                   uncertainty {name: standard deviation},
+//!                   evidence [text], gain {heldout_nll_gain, heldout_steps,
+//!                   nis_per_dof {before, after}, prediction_rmse_m [{horizon_s, before, after}]}}]
+//!                 an empty list when the nominal model explains the data
+//! rejected        [{cause, parameters, heldout_nll_gain, reason}]: tried, not reported
+//! instrument      {speed_mps, toward_deg, samples} the log's own set and drift
+//!                 (NMEA 2000 PGN 130577), or null
+//! residuals       {steps, mean [6], bias_z [6], rms [6], lag1 [6], nis_per_dof,
+//!                  measured [6], signatures [{component, signature, correlation}]}
+//!                 components: north, east, sog, cog, heading, stw
+//! ```
+//! Causes and parameter names: `current` (`speed_mps`, `toward_deg`, and the
+//! `north_mps`, `east_mps` components), `thruster_loss` (`side`, `loss`),
+//! `heading_offset` (`offset_deg`: sensor minus true), `sog_scale` (`scale`:
+//! reported over true), `gnss_latency` (`latency_s`: how much older the GNSS
+//! data are than their stamps), `lever_arm` (`x_m`, `y_m`: antenna forward,
+//! starboard).
+
+// Measurement components are indexed across parallel arrays.
+#![allow(clippy::needless_range_loop)]
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+use twin_core::diagnose::{
+    BaseModel, COMPONENTS, DiagEvent, DiagnoseConfig, Diagnosis, InnovationRecord, ResidualSummary,
+    diagnose, prepare,
+};
+use twin_core::geodesy::rad_to_compass_deg;
+use twin_wire::{
+    Assembled, AssemblerConfig, FixAssembler, LogReader, Measurement, ReadOptions, SourceChoice,
+};
+
+use crate::svg::{Figure, PALETTE, Style};
+
+/// Why a log cannot be diagnosed.
+#[derive(Debug, thiserror::Error)]
+pub enum DiagnoseError {
+    /// The log cannot be opened.
+    #[error("cannot open log {path}: {source}")]
+    Open {
+        /// The log.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The log is empty, in no known format, or unreadable.
+    #[error("cannot read log {path}: {source}")]
+    Log {
+        /// The log.
+        path: PathBuf,
+        /// Why.
+        source: twin_wire::read::OpenError,
+    },
+    /// The log has too few usable fixes.
+    #[error("{path}: too few usable GNSS fixes to diagnose (at least 10 are needed)")]
+    TooShort {
+        /// The log.
+        path: PathBuf,
+    },
+}
+
+/// The log's measurements as the diagnosis takes them, and the instrument's
+/// own current estimate if the log has one.
+pub struct LoadedLog {
+    /// Fixes, speeds through water and propeller speeds.
+    pub events: Vec<DiagEvent>,
+    /// Mean set and drift of the log's own current estimate: `(north, east)` m/s and count.
+    pub instrument_current: Option<([f64; 2], usize)>,
+}
+
+/// Reads a log (any format `twin_wire` reads).
+pub fn load(
+    input: impl BufRead,
+    name: &Path,
+    source: SourceChoice,
+) -> Result<LoadedLog, DiagnoseError> {
+    let reader =
+        LogReader::open(input, ReadOptions::default()).map_err(|source| DiagnoseError::Log {
+            path: name.to_path_buf(),
+            source,
+        })?;
+    let mut assembler = FixAssembler::new(AssemblerConfig {
+        position_source: source,
+        ..AssemblerConfig::default()
+    });
+    let mut events = Vec::new();
+    let mut out = Vec::new();
+    let mut set_drift = ([0.0f64; 2], 0usize);
+    for item in reader {
+        let Ok(record) = item else { continue };
+        match record.measurement {
+            Measurement::SpeedThroughWater { mps } => events.push(DiagEvent::SpeedThroughWater {
+                time_s: record.time_s,
+                mps,
+            }),
+            Measurement::SetDrift { set_rad, drift_mps }
+                if set_rad.is_finite() && drift_mps.is_finite() =>
+            {
+                set_drift.0[0] += drift_mps * set_rad.cos();
+                set_drift.0[1] += drift_mps * set_rad.sin();
+                set_drift.1 += 1;
+            }
+            _ => {}
+        }
+        assembler.push(record, &mut out);
+        for a in out.drain(..) {
+            push_assembled(&mut events, a);
+        }
+    }
+    assembler.finish(&mut out);
+    for a in out.drain(..) {
+        push_assembled(&mut events, a);
+    }
+    let instrument_current = (set_drift.1 > 0).then(|| {
+        let n = set_drift.1 as f64;
+        ([set_drift.0[0] / n, set_drift.0[1] / n], set_drift.1)
+    });
+    Ok(LoadedLog {
+        events,
+        instrument_current,
+    })
+}
+
+fn push_assembled(events: &mut Vec<DiagEvent>, a: Assembled) {
+    match a {
+        Assembled::Fix(f) => events.push(DiagEvent::Fix(f)),
+        Assembled::Propellers(p) => events.push(DiagEvent::Propellers(p)),
+        Assembled::Thrust(_) => {}
+    }
+}
+
+/// A finding as printed.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FindingJson {
+    /// The cause's name.
+    pub cause: &'static str,
+    /// Its parameters (numbers, and `side` for a thruster loss).
+    pub parameters: BTreeMap<&'static str, serde_json::Value>,
+    /// Standard deviation of each numeric parameter.
+    pub uncertainty: BTreeMap<&'static str, f64>,
+    /// What in the nominal residuals points at it.
+    pub evidence: Vec<String>,
+    /// What the model gains with it on held-out data.
+    pub gain: GainJson,
+}
+
+/// A gain as printed.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GainJson {
+    /// Held-out log-likelihood gain.
+    pub heldout_nll_gain: f64,
+    /// Held-out steps.
+    pub heldout_steps: usize,
+    /// NIS per degree of freedom before and after.
+    pub nis_per_dof: BeforeAfter,
+    /// Position prediction RMSE per horizon.
+    pub prediction_rmse_m: Vec<HorizonRmse>,
+}
+
+/// Two numbers.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct BeforeAfter {
+    /// Without the finding.
+    pub before: f64,
+    /// With it.
+    pub after: f64,
+}
+
+/// Prediction RMSE at one horizon.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct HorizonRmse {
+    /// Horizon, s.
+    pub horizon_s: f64,
+    /// RMSE without the finding, m.
+    pub before: f64,
+    /// With it, m.
+    pub after: f64,
+}
+
+/// A cause tried and not reported.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RejectedJson {
+    /// The cause.
+    pub cause: &'static str,
+    /// Its fitted parameters.
+    pub parameters: BTreeMap<&'static str, f64>,
+    /// Its held-out gain.
+    pub heldout_nll_gain: f64,
+    /// The bar it missed.
+    pub reason: String,
+}
+
+/// Residual statistics as printed.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ResidualsJson {
+    /// Steps.
+    pub steps: usize,
+    /// Mean innovation per component.
+    pub mean: [f64; 6],
+    /// Bias in standard errors per component.
+    pub bias_z: [f64; 6],
+    /// RMS per component.
+    pub rms: [f64; 6],
+    /// Lag-1 autocorrelation per component.
+    pub lag1: [f64; 6],
+    /// Mean NIS per degree of freedom.
+    pub nis_per_dof: f64,
+    /// Which components were measured.
+    pub measured: [bool; 6],
+    /// Strongest correlations with signatures.
+    pub signatures: Vec<SignatureJson>,
+}
+
+/// One correlation.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SignatureJson {
+    /// Component.
+    pub component: &'static str,
+    /// Signature.
+    pub signature: &'static str,
+    /// Correlation.
+    pub correlation: f64,
+}
+
+fn residuals_json(r: &ResidualSummary) -> ResidualsJson {
+    ResidualsJson {
+        steps: r.steps,
+        mean: r.mean,
+        bias_z: r.bias_z,
+        rms: r.rms,
+        lag1: r.lag1,
+        nis_per_dof: r.nis_per_dof,
+        measured: r.measured,
+        signatures: r
+            .signatures
+            .iter()
+            .map(|s| SignatureJson {
+                component: s.component,
+                signature: s.signature,
+                correlation: s.correlation,
+            })
+            .collect(),
+    }
+}
+
+/// The instrument's own current.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct InstrumentJson {
+    /// Mean drift, m/s.
+    pub speed_mps: f64,
+    /// Mean set, degrees true.
+    pub toward_deg: f64,
+    /// Messages averaged.
+    pub samples: usize,
+}
+
+/// What the log measures.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MeasuredJson {
+    /// True heading.
+    pub heading: bool,
+    /// Speed through water.
+    pub speed_through_water: bool,
+    /// Propeller speeds.
+    pub propellers: bool,
+}
+
+/// The whole report (`--json`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DiagnoseReport {
+    /// `twin-diagnose/1`.
+    pub schema: &'static str,
+    /// The log.
+    pub log: String,
+    /// `kinetic` or `water`.
+    pub base_model: &'static str,
+    /// Steps.
+    pub steps: usize,
+    /// Training steps.
+    pub training_steps: usize,
+    /// Held-out steps.
+    pub heldout_steps: usize,
+    /// What the log measures.
+    pub measured: MeasuredJson,
+    /// Nominal residuals on the held-out part.
+    pub nominal: ResidualsJson,
+    /// Residuals with every finding.
+    pub extended: ResidualsJson,
+    /// The findings.
+    pub findings: Vec<FindingJson>,
+    /// Causes tried and not reported.
+    pub rejected: Vec<RejectedJson>,
+    /// The log's own current estimate, where it has one.
+    pub instrument: Option<InstrumentJson>,
+    /// The diagnosis itself (for plots; not printed).
+    #[serde(skip)]
+    pub diagnosis: Option<Diagnosis>,
+}
+
+fn finding_json(f: &twin_core::diagnose::Finding) -> FindingJson {
+    let mut parameters = BTreeMap::new();
+    let mut uncertainty = BTreeMap::new();
+    if let Some(side) = f.side {
+        parameters.insert("side", serde_json::Value::from(side));
+    }
+    for (name, value, sigma) in &f.parameters {
+        parameters.insert(*name, serde_json::Value::from(*value));
+        if sigma.is_finite() {
+            uncertainty.insert(*name, *sigma);
+        }
+    }
+    let g = &f.gain;
+    FindingJson {
+        cause: f.cause.name(),
+        parameters,
+        uncertainty,
+        evidence: f.evidence.clone(),
+        gain: GainJson {
+            heldout_nll_gain: g.heldout_nll_gain,
+            heldout_steps: g.heldout_steps,
+            nis_per_dof: BeforeAfter {
+                before: g.nis_per_dof_before,
+                after: g.nis_per_dof_after,
+            },
+            prediction_rmse_m: g
+                .prediction_rmse_before_m
+                .iter()
+                .zip(&g.prediction_rmse_after_m)
+                .map(|((h, b), (_, a))| HorizonRmse {
+                    horizon_s: *h,
+                    before: *b,
+                    after: *a,
+                })
+                .collect(),
+        },
+    }
+}
+
+/// Diagnoses loaded measurements.
+pub fn diagnose_loaded(
+    name: &str,
+    log: &LoadedLog,
+    config: &DiagnoseConfig,
+) -> Result<DiagnoseReport, DiagnoseError> {
+    let prep = prepare(&log.events).ok_or_else(|| DiagnoseError::TooShort {
+        path: PathBuf::from(name),
+    })?;
+    let d = diagnose(&prep, config);
+    Ok(DiagnoseReport {
+        schema: "twin-diagnose/1",
+        log: name.to_string(),
+        base_model: match d.base {
+            BaseModel::Kinetic => "kinetic",
+            BaseModel::Water => "water",
+        },
+        steps: d.steps,
+        training_steps: d.training_steps,
+        heldout_steps: d.steps - d.training_steps,
+        measured: MeasuredJson {
+            heading: prep.has_heading,
+            speed_through_water: prep.has_stw,
+            propellers: prep.has_propellers,
+        },
+        nominal: residuals_json(&d.nominal),
+        extended: residuals_json(&d.extended),
+        findings: d.findings.iter().map(finding_json).collect(),
+        rejected: d
+            .rejected
+            .iter()
+            .map(|r| RejectedJson {
+                cause: r.cause.name(),
+                parameters: r.parameters.iter().map(|(n, v, _)| (*n, *v)).collect(),
+                heldout_nll_gain: r.heldout_nll_gain,
+                reason: r.reason.clone(),
+            })
+            .collect(),
+        instrument: log
+            .instrument_current
+            .map(|([n, e], samples)| InstrumentJson {
+                speed_mps: n.hypot(e),
+                toward_deg: rad_to_compass_deg(e.atan2(n)),
+                samples,
+            }),
+        diagnosis: Some(d),
+    })
+}
+
+/// Diagnoses the log at `path`.
+pub fn diagnose_path(
+    path: &Path,
+    source: SourceChoice,
+    config: &DiagnoseConfig,
+) -> Result<DiagnoseReport, DiagnoseError> {
+    let file = File::open(path).map_err(|source| DiagnoseError::Open {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let log = load(BufReader::new(file), path, source)?;
+    diagnose_loaded(&path.display().to_string(), &log, config)
+}
+
+fn value_text(v: &serde_json::Value) -> String {
+    match v {
+        serde_json::Value::Number(n) => n.as_f64().map(|x| format!("{x:.3}")).unwrap_or_default(),
+        other => other.to_string().trim_matches('"').to_string(),
+    }
+}
+
+/// The human summary.
+pub fn render_text(r: &DiagnoseReport) -> String {
+    use std::fmt::Write;
+    let mut o = String::new();
+    let _ = writeln!(o, "twin diagnose {}", r.log);
+    let _ = writeln!(
+        o,
+        "  model        {} ({}), {} steps: fitted on the first {}, judged on the last {}",
+        r.base_model,
+        if r.base_model == "kinetic" {
+            "the Otter's twin driven by the logged propeller speeds"
+        } else {
+            "a kinematic vessel through water; no propeller data"
+        },
+        r.steps,
+        r.training_steps,
+        r.heldout_steps
+    );
+    let _ = writeln!(
+        o,
+        "  measured     heading {}, speed through water {}, propellers {}",
+        r.measured.heading, r.measured.speed_through_water, r.measured.propellers
+    );
+    let n = &r.nominal;
+    let _ = writeln!(
+        o,
+        "  nominal      NIS per dof {:.2} on held-out data (1.0 when the model explains the data)",
+        n.nis_per_dof
+    );
+    for c in 0..6 {
+        if n.measured[c] && n.bias_z[c].abs() > 3.0 {
+            let _ = writeln!(
+                o,
+                "               {} innovations biased: mean {:.4} ({:.1} standard errors)",
+                COMPONENTS[c], n.mean[c], n.bias_z[c]
+            );
+        }
+    }
+    for s in n
+        .signatures
+        .iter()
+        .filter(|s| s.correlation.abs() >= 0.3)
+        .take(3)
+    {
+        let _ = writeln!(
+            o,
+            "               {} innovations follow {} (correlation {:.2})",
+            s.component, s.signature, s.correlation
+        );
+    }
+    if r.findings.is_empty() {
+        let _ = writeln!(
+            o,
+            "  findings     none: the nominal model explains the data (no cause clears the bars)"
+        );
+    }
+    for (i, f) in r.findings.iter().enumerate() {
+        let params: Vec<String> = f
+            .parameters
+            .iter()
+            .map(|(k, v)| match f.uncertainty.get(k) {
+                Some(s) => format!("{k} {} +- {s:.3}", value_text(v)),
+                None => format!("{k} {}", value_text(v)),
+            })
+            .collect();
+        let _ = writeln!(
+            o,
+            "  finding {}    {}: {}",
+            i + 1,
+            f.cause,
+            params.join(", ")
+        );
+        for e in &f.evidence {
+            let _ = writeln!(o, "               evidence: {e}");
+        }
+        let g = &f.gain;
+        let rmse: Vec<String> = g
+            .prediction_rmse_m
+            .iter()
+            .map(|h| format!("{:.0} s {:.2} m -> {:.2} m", h.horizon_s, h.before, h.after))
+            .collect();
+        let _ = writeln!(
+            o,
+            "               gain on held-out data: log-likelihood +{:.1}, NIS per dof {:.2} -> {:.2}; position prediction RMSE {}",
+            g.heldout_nll_gain,
+            g.nis_per_dof.before,
+            g.nis_per_dof.after,
+            rmse.join(", ")
+        );
+    }
+    if let Some(i) = &r.instrument {
+        let _ = writeln!(
+            o,
+            "  instrument   the log's own set and drift: {:.2} m/s toward {:.0} deg ({} messages)",
+            i.speed_mps, i.toward_deg, i.samples
+        );
+    }
+    for rej in &r.rejected {
+        let _ = writeln!(o, "  not named    {}: {}", rej.cause, rej.reason);
+    }
+    o
+}
+
+/// Writes SVG figures of the held-out innovations before and after the
+/// findings into `dir`: one file per measured component.
+pub fn write_plots(r: &DiagnoseReport, dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir)?;
+    let Some(d) = &r.diagnosis else {
+        return Ok(Vec::new());
+    };
+    let mut written = Vec::new();
+    let series = |records: &[InnovationRecord], c: usize| -> Vec<(f64, f64)> {
+        let t0 = records.first().map(|r| r.time_s).unwrap_or(0.0);
+        records
+            .iter()
+            .filter(|r| r.available[c])
+            .map(|r| (r.time_s - t0, r.innovation[c]))
+            .collect()
+    };
+    for c in 0..6 {
+        if !d.nominal.measured[c] {
+            continue;
+        }
+        let mut fig = Figure::new(
+            &format!(
+                "{} innovations on held-out data, before and after the findings",
+                COMPONENTS[c]
+            ),
+            "time into the held-out part, s",
+            &format!("{} innovation", COMPONENTS[c]),
+        );
+        fig.line(
+            "nominal model",
+            PALETTE[1],
+            Style::Dots,
+            series(&d.nominal_records, c),
+        );
+        fig.line(
+            "extended model",
+            PALETTE[0],
+            Style::Dots,
+            series(&d.extended_records, c),
+        );
+        let path = dir.join(format!("diagnose_{}.svg", COMPONENTS[c]));
+        std::fs::write(&path, fig.render())?;
+        written.push(path);
+    }
+    Ok(written)
+}

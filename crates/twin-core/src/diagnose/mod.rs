@@ -1,0 +1,54 @@
+//! `diagnose`: what the twin's model gets wrong on measured data, the cause,
+//! the extended model, and the gain, measured on data the fit never saw.
+//!
+//! # Method
+//! 1. **Prepare.** The log's fixes (position, speed and course over ground,
+//!    heading), speed through water and propeller speeds are put on one
+//!    time line in the local frame ([`prepare`]).
+//! 2. **Base model.** With propeller speeds, the Otter's kinetic twin
+//!    ([`crate::models::otter_twin`]); without, a kinematic model of any
+//!    vessel through water ([`crate::models::water_kinematic`]). The nominal
+//!    model has no current, no propeller loss and no sensor effect.
+//! 3. **Residuals of the nominal model** ([`residuals`]): innovation bias,
+//!    whiteness, NIS against its chi-square band, k-step-ahead prediction
+//!    errors at several horizons, and the correlation of the innovations
+//!    with candidate signatures (heading, speed, turn rate, acceleration,
+//!    time).
+//! 4. **Catalogue of causes** ([`Cause`]): the water current (two states),
+//!    a loss per propeller (where propeller data exist), a heading-sensor
+//!    offset, a scale error of the reported SOG, GNSS latency and the GNSS
+//!    antenna's lever arm. Each is fitted on the first part of the log
+//!    (states: estimated by the filter; sensor effects: maximum likelihood
+//!    over the filter's one-step-ahead predictions), then held fixed and
+//!    judged on the held-out rest against the model without it.
+//! 5. **Selection.** Greedy: the cause with the largest held-out gain is
+//!    accepted if it clears three bars fixed in advance ([`Acceptance`]): the
+//!    held-out log-likelihood gains at least `min_gain_nll` (a likelihood
+//!    ratio of e^10 by default; a parameter that only fits noise loses
+//!    held-out likelihood), the fitted size is at least `min_z` standard
+//!    deviations from none, and at least the practical size a user would
+//!    act on. Then the others are tried again on top of it, until none
+//!    clears the bars: combined effects are found one after the other.
+//! 6. **Report** ([`Diagnosis`]): per finding the cause, its parameters
+//!    with uncertainty, the evidence in the nominal residuals, and the gain
+//!    on held-out data (log-likelihood, NIS per degree of freedom, position
+//!    prediction RMSE at each horizon, before and after).
+//!
+//! Pure like the rest of the crate: the log comes in as values; nothing is
+//! read, no clock is used. The truth of a simulated log is never an input.
+
+// Measurement components are indexed across parallel arrays (innovation,
+// sigma, availability, statistics); an index loop says so most plainly.
+#![allow(clippy::needless_range_loop)]
+
+mod fit;
+mod prepare;
+mod residuals;
+
+pub use fit::{
+    Acceptance, BaseModel, Cause, DiagnoseConfig, Diagnosis, Finding, Gain, Rejected, diagnose,
+};
+pub use prepare::{DiagEvent, Prepared, prepare};
+pub use residuals::{
+    COMPONENTS, InnovationRecord, ResidualSummary, SIGNATURES, SignatureCorrelation,
+};
