@@ -51,6 +51,7 @@ use twin_wire::{
 };
 
 use crate::svg::{Figure, PALETTE, Style};
+use twin_wire::outputs::FindingJson;
 
 /// Why a log cannot be diagnosed.
 #[derive(Debug, thiserror::Error)]
@@ -147,54 +148,6 @@ fn push_assembled(events: &mut Vec<DiagEvent>, a: Assembled) {
         Assembled::Propellers(p) => events.push(DiagEvent::Propellers(p)),
         Assembled::Thrust(_) => {}
     }
-}
-
-/// A finding as printed.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct FindingJson {
-    /// The cause's name.
-    pub cause: &'static str,
-    /// Its parameters (numbers, and `side` for a thruster loss).
-    pub parameters: BTreeMap<&'static str, serde_json::Value>,
-    /// Standard deviation of each numeric parameter.
-    pub uncertainty: BTreeMap<&'static str, f64>,
-    /// What in the nominal residuals points at it.
-    pub evidence: Vec<String>,
-    /// What the model gains with it on held-out data.
-    pub gain: GainJson,
-}
-
-/// A gain as printed.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct GainJson {
-    /// Held-out log-likelihood gain.
-    pub heldout_nll_gain: f64,
-    /// Held-out steps.
-    pub heldout_steps: usize,
-    /// NIS per degree of freedom before and after.
-    pub nis_per_dof: BeforeAfter,
-    /// Position prediction RMSE per horizon.
-    pub prediction_rmse_m: Vec<HorizonRmse>,
-}
-
-/// Two numbers.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct BeforeAfter {
-    /// Without the finding.
-    pub before: f64,
-    /// With it.
-    pub after: f64,
-}
-
-/// Prediction RMSE at one horizon.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct HorizonRmse {
-    /// Horizon, s.
-    pub horizon_s: f64,
-    /// RMSE without the finding, m.
-    pub before: f64,
-    /// With it, m.
-    pub after: f64,
 }
 
 /// A cause tried and not reported.
@@ -317,45 +270,6 @@ pub struct DiagnoseReport {
     pub diagnosis: Option<Diagnosis>,
 }
 
-fn finding_json(f: &twin_core::diagnose::Finding) -> FindingJson {
-    let mut parameters = BTreeMap::new();
-    let mut uncertainty = BTreeMap::new();
-    if let Some(side) = f.side {
-        parameters.insert("side", serde_json::Value::from(side));
-    }
-    for (name, value, sigma) in &f.parameters {
-        parameters.insert(*name, serde_json::Value::from(*value));
-        if sigma.is_finite() {
-            uncertainty.insert(*name, *sigma);
-        }
-    }
-    let g = &f.gain;
-    FindingJson {
-        cause: f.cause.name(),
-        parameters,
-        uncertainty,
-        evidence: f.evidence.clone(),
-        gain: GainJson {
-            heldout_nll_gain: g.heldout_nll_gain,
-            heldout_steps: g.heldout_steps,
-            nis_per_dof: BeforeAfter {
-                before: g.nis_per_dof_before,
-                after: g.nis_per_dof_after,
-            },
-            prediction_rmse_m: g
-                .prediction_rmse_before_m
-                .iter()
-                .zip(&g.prediction_rmse_after_m)
-                .map(|((h, b), (_, a))| HorizonRmse {
-                    horizon_s: *h,
-                    before: *b,
-                    after: *a,
-                })
-                .collect(),
-        },
-    }
-}
-
 /// Diagnoses loaded measurements.
 pub fn diagnose_loaded(
     name: &str,
@@ -383,7 +297,7 @@ pub fn diagnose_loaded(
         },
         nominal: residuals_json(&d.nominal),
         extended: residuals_json(&d.extended),
-        findings: d.findings.iter().map(finding_json).collect(),
+        findings: d.findings.iter().map(FindingJson::from).collect(),
         rejected: d
             .rejected
             .iter()

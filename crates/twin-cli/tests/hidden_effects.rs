@@ -97,7 +97,7 @@ fn param(r: &DiagnoseReport, i: usize, name: &str) -> f64 {
 
 /// Checks a diagnosis against the hidden effect; `Err` says what is wrong.
 fn judge(h: Hidden, r: &DiagnoseReport) -> Result<(), String> {
-    let causes: Vec<&str> = r.findings.iter().map(|f| f.cause).collect();
+    let causes: Vec<&str> = r.findings.iter().map(|f| f.cause.as_str()).collect();
     let within = |got: f64, want: f64| (got - want).abs() <= 0.2 * want.abs();
     match h {
         Hidden::Nothing => {
@@ -249,7 +249,7 @@ fn a_current_and_a_propeller_loss_are_both_named() {
             f.cause, f.parameters, f.gain.heldout_nll_gain
         );
     }
-    let mut causes: Vec<&str> = r.findings.iter().map(|f| f.cause).collect();
+    let mut causes: Vec<&str> = r.findings.iter().map(|f| f.cause.as_str()).collect();
     causes.sort();
     assert_eq!(causes, ["current", "thruster_loss"]);
     let cur = r.findings.iter().find(|f| f.cause == "current").unwrap();

@@ -413,3 +413,141 @@ impl StatsMessage {
         self.rejected.values().sum()
     }
 }
+
+/// One finding of a diagnosis, as published on `twin/finding` and printed by
+/// `twin diagnose --json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FindingJson {
+    /// The cause: `current`, `thruster_loss`, `heading_offset`, `sog_scale`,
+    /// `gnss_latency`, `lever_arm`, `stw_scale`, `sideslip`.
+    pub cause: String,
+    /// Its parameters (numbers, and `side` for a thruster loss).
+    pub parameters: BTreeMap<String, serde_json::Value>,
+    /// Standard deviation of each numeric parameter.
+    pub uncertainty: BTreeMap<String, f64>,
+    /// What in the nominal residuals points at it.
+    pub evidence: Vec<String>,
+    /// What the model gains with it on held-out data.
+    pub gain: GainJson,
+}
+
+/// A finding's gain on held-out data.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GainJson {
+    /// Held-out log-likelihood gain.
+    pub heldout_nll_gain: f64,
+    /// Held-out steps.
+    pub heldout_steps: usize,
+    /// NIS per degree of freedom before and after.
+    pub nis_per_dof: BeforeAfter,
+    /// Position prediction RMSE per horizon.
+    pub prediction_rmse_m: Vec<HorizonRmse>,
+}
+
+/// Two numbers, without and with a finding.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BeforeAfter {
+    /// Without the finding.
+    pub before: f64,
+    /// With it.
+    pub after: f64,
+}
+
+/// Prediction RMSE at one horizon, without and with a finding.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct HorizonRmse {
+    /// Horizon, s.
+    pub horizon_s: f64,
+    /// RMSE without the finding, m.
+    pub before: f64,
+    /// With it, m.
+    pub after: f64,
+}
+
+impl From<&twin_core::diagnose::Finding> for FindingJson {
+    fn from(f: &twin_core::diagnose::Finding) -> Self {
+        let mut parameters = BTreeMap::new();
+        let mut uncertainty = BTreeMap::new();
+        if let Some(side) = f.side {
+            parameters.insert("side".to_string(), serde_json::Value::from(side));
+        }
+        for (name, value, sigma) in &f.parameters {
+            parameters.insert(name.to_string(), serde_json::Value::from(*value));
+            if sigma.is_finite() {
+                uncertainty.insert(name.to_string(), *sigma);
+            }
+        }
+        let g = &f.gain;
+        Self {
+            cause: f.cause.name().to_string(),
+            parameters,
+            uncertainty,
+            evidence: f.evidence.clone(),
+            gain: GainJson {
+                heldout_nll_gain: g.heldout_nll_gain,
+                heldout_steps: g.heldout_steps,
+                nis_per_dof: BeforeAfter {
+                    before: g.nis_per_dof_before,
+                    after: g.nis_per_dof_after,
+                },
+                prediction_rmse_m: g
+                    .prediction_rmse_before_m
+                    .iter()
+                    .zip(&g.prediction_rmse_after_m)
+                    .map(|((h, b), (_, a))| HorizonRmse {
+                        horizon_s: *h,
+                        before: *b,
+                        after: *a,
+                    })
+                    .collect(),
+            },
+        }
+    }
+}
+
+/// `twin/finding`: what the daemon's residual monitor concluded about a
+/// vessel's recent data, published when it changes (an empty list when the
+/// nominal model explains the data again).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FindingsMessage {
+    /// Vessel id.
+    pub vessel: String,
+    /// Time of the last fix diagnosed, RFC 3339.
+    pub time: String,
+    /// Seconds of data diagnosed.
+    pub window_s: f64,
+    /// `kinetic` (propeller data) or `water`.
+    pub base_model: String,
+    /// The nominal model's NIS per degree of freedom on the held-out part.
+    pub nominal_nis_per_dof: f64,
+    /// What triggered the diagnosis: `routine` or `residuals` (the live
+    /// twin's recent NIS left its band).
+    pub trigger: String,
+    /// The findings; empty when the nominal model explains the data.
+    pub findings: Vec<FindingJson>,
+    /// True when the inputs were replayed from a log.
+    pub replay: bool,
+}
+
+impl FindingsMessage {
+    /// The causes named, sorted (to tell whether a new diagnosis changed anything).
+    pub fn causes(&self) -> Vec<String> {
+        let mut v: Vec<String> = self
+            .findings
+            .iter()
+            .map(
+                |f| match f.parameters.get("side").and_then(|s| s.as_str()) {
+                    Some(side) => format!("{}:{side}", f.cause),
+                    None => f.cause.clone(),
+                },
+            )
+            .collect();
+        v.sort();
+        v
+    }
+}
+
+/// Formats a time for payloads (RFC 3339, or `invalid`).
+pub fn payload_time(time_s: f64) -> String {
+    time_string(time_s)
+}
