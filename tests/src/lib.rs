@@ -100,16 +100,20 @@ pub mod wire {
     /// Payloads in time order, each with its topic (`gnss` or `actuators`).
     pub type Messages = Vec<(&'static str, Vec<u8>)>;
 
-    /// Simulates a scenario file of `config/scenarios/` with the port loss
-    /// and noise seed set.
-    pub fn simulate(file: &str, port_loss: f64, seed: u64) -> SimRun {
+    /// A scenario file of `config/scenarios/` (name without `.toml`).
+    pub fn scenario(file: &str) -> Scenario {
         let path = format!(
             "{}/../config/scenarios/{file}.toml",
             env!("CARGO_MANIFEST_DIR")
         );
-        let mut sc =
-            Scenario::from_toml_str(&std::fs::read_to_string(path).expect("scenario file"))
-                .expect("valid scenario");
+        Scenario::from_toml_str(&std::fs::read_to_string(path).expect("scenario file"))
+            .expect("valid scenario")
+    }
+
+    /// Simulates a scenario file of `config/scenarios/` with the port loss
+    /// and noise seed set.
+    pub fn simulate(file: &str, port_loss: f64, seed: u64) -> SimRun {
+        let mut sc = scenario(file);
         sc.propellers.port.loss = port_loss;
         sc.seed = seed;
         twin_sim::simulate(&sc).expect("simulation")

@@ -123,6 +123,10 @@ pub async fn run_with_tap(
     let (done_tx, mut done_rx) = mpsc::unbounded_channel::<(String, Counters)>();
     let mut vessels: HashMap<String, mpsc::Sender<VesselEvent>> = HashMap::new();
     let mut summary = RunSummary::default();
+    // Diagnoses are CPU-heavy (seconds each): this bounds how many run at once.
+    let diagnose_slots = Arc::new(tokio::sync::Semaphore::new(
+        settings.diagnose.max_concurrent,
+    ));
 
     // The queryable answers from the shared map; it needs no vessel task.
     let answer_latest = {
@@ -228,6 +232,7 @@ pub async fn run_with_tap(
                     session.clone(),
                     latest.clone(),
                     tap.clone(),
+                    diagnose_slots.clone(),
                 );
                 let done = done_tx.clone();
                 let name = vessel.clone();

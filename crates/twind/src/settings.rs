@@ -7,6 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
+use twin_core::diagnose::MonitorConfig;
 use twin_core::twin::TwinConfig;
 use twin_wire::KeySpace;
 
@@ -56,6 +57,21 @@ struct RawSettings {
     web: RawWeb,
     #[serde(default)]
     twin: RawTwin,
+    #[serde(default)]
+    diagnose: RawDiagnose,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawDiagnose {
+    enabled: Option<bool>,
+    window_s: Option<f64>,
+    min_window_s: Option<f64>,
+    interval_s: Option<f64>,
+    min_interval_s: Option<f64>,
+    bias_window_s: Option<f64>,
+    bias_t: Option<f64>,
+    max_concurrent: Option<usize>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -160,6 +176,18 @@ pub struct WebSettings {
     pub listen: String,
 }
 
+/// The live residual monitor (`twin diagnose` on each vessel's recent past).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DiagnoseSettings {
+    /// Run it.
+    pub enabled: bool,
+    /// When and over what (message time).
+    pub monitor: MonitorConfig,
+    /// Most diagnoses running at once across all vessels (each on a
+    /// blocking thread, one thread per diagnosis).
+    pub max_concurrent: usize,
+}
+
 /// The validated settings.
 #[derive(Debug, Clone)]
 pub struct Settings {
@@ -177,6 +205,8 @@ pub struct Settings {
     pub web: WebSettings,
     /// The twin each vessel runs.
     pub twin: TwinConfig,
+    /// The live residual monitor.
+    pub diagnose: DiagnoseSettings,
 }
 
 impl Default for Settings {
@@ -354,6 +384,7 @@ impl Settings {
                 ),
             });
         }
+        let diagnose = diagnose_settings(&raw.diagnose)?;
         Ok(Self {
             keys,
             vessels,
@@ -362,8 +393,57 @@ impl Settings {
             persistence,
             web,
             twin,
+            diagnose,
         })
     }
+}
+
+fn diagnose_settings(raw: &RawDiagnose) -> Result<DiagnoseSettings, SettingsError> {
+    let d = MonitorConfig::default();
+    let monitor = MonitorConfig {
+        window_s: raw.window_s.unwrap_or(d.window_s),
+        min_window_s: raw.min_window_s.unwrap_or(d.min_window_s),
+        interval_s: raw.interval_s.unwrap_or(d.interval_s),
+        min_interval_s: raw.min_interval_s.unwrap_or(d.min_interval_s),
+        bias_window_s: raw.bias_window_s.unwrap_or(d.bias_window_s),
+        bias_t: raw.bias_t.unwrap_or(d.bias_t),
+        new_track_gap_s: d.new_track_gap_s,
+    };
+    monitor
+        .validate()
+        .map_err(|(field, reason)| SettingsError::Invalid {
+            key: match field {
+                "window_s" => "diagnose.window_s",
+                "min_window_s" => "diagnose.min_window_s",
+                "interval_s" => "diagnose.interval_s",
+                "min_interval_s" => "diagnose.min_interval_s",
+                "bias_window_s" => "diagnose.bias_window_s",
+                "bias_t" => "diagnose.bias_t",
+                _ => "diagnose",
+            },
+            reason,
+        })?;
+    if monitor.window_s > 3600.0 {
+        return Err(SettingsError::Invalid {
+            key: "diagnose.window_s",
+            reason: format!(
+                "at most 3600 s of history are kept, got {}",
+                monitor.window_s
+            ),
+        });
+    }
+    let max_concurrent = raw.max_concurrent.unwrap_or(1);
+    if max_concurrent == 0 {
+        return Err(SettingsError::Invalid {
+            key: "diagnose.max_concurrent",
+            reason: "must be at least 1 (set diagnose.enabled = false to turn it off)".into(),
+        });
+    }
+    Ok(DiagnoseSettings {
+        enabled: raw.enabled.unwrap_or(true),
+        monitor,
+        max_concurrent,
+    })
 }
 
 #[cfg(test)]
@@ -399,6 +479,13 @@ mod tests {
                 "twin.suspect_loss",
             ),
             ("[vessels]\nqueue_depth = 0\n", "vessels.queue_depth"),
+            ("[diagnose]\nmin_window_s = 900\n", "diagnose.min_window_s"),
+            ("[diagnose]\nbias_t = 0\n", "diagnose.bias_t"),
+            ("[diagnose]\nwindow_s = 7200\n", "diagnose.window_s"),
+            (
+                "[diagnose]\nmax_concurrent = 0\n",
+                "diagnose.max_concurrent",
+            ),
         ];
         for (text, key) in cases {
             let err = Settings::from_toml(text).unwrap_err().to_string();

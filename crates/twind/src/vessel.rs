@@ -13,6 +13,10 @@
 //! - after `drop_after_silence_s` without any message the task saves the
 //!   calibration and ends (the dispatcher starts a new one if the vessel
 //!   returns, restoring the calibration);
+//! - the live residual monitor keeps the recent past and, when due (on an
+//!   interval, or early when the innovations turn biased), diagnoses it on a
+//!   blocking thread (at most `diagnose.max_concurrent` across the daemon)
+//!   and publishes `twin/finding` when the named causes change;
 //! - on shutdown (its channel closed by the dispatcher) it handles what is
 //!   queued, publishes a last state and fault, saves the calibration, and
 //!   ends; its liveliness token goes with it.
@@ -20,15 +24,20 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use tokio::sync::mpsc;
+use tokio::sync::{Semaphore, mpsc, oneshot};
 use twin_core::decision::StatusChange;
+use twin_core::diagnose::{
+    BaseModel, DiagEvent, DiagnoseConfig, LiveMonitor, Trigger, diagnose, prepare,
+};
 use twin_core::sample::{GnssFix, PropellerSpeeds};
 use twin_core::twin::{StepOutput, VesselTwin};
 use twin_wire::assemble::{Assembled, AssemblerConfig, FixAssembler};
+use twin_wire::measurement::Measurement;
 use twin_wire::measurement::ThrustCommand;
 use twin_wire::messages::{ActuatorCommand, decode_actuators_limited, decode_gnss_limited};
 use twin_wire::outputs::{
-    AlarmMessage, FaultMessage, PredictionMessage, StateMessage, StatsMessage,
+    AlarmMessage, FaultMessage, FindingJson, FindingsMessage, PredictionMessage, StateMessage,
+    StatsMessage, payload_time,
 };
 use twin_wire::read::{NmeaDecoder, ReadOptions};
 use twin_wire::{Topic, VesselId};
@@ -66,6 +75,7 @@ struct Publishers {
     prediction: Publisher<'static>,
     alarm: Publisher<'static>,
     stats: Publisher<'static>,
+    finding: Publisher<'static>,
 }
 
 async fn publisher(session: &Session, key: String) -> zenoh::Result<Publisher<'static>> {
@@ -92,6 +102,39 @@ pub struct VesselTask {
     last_event_wall: Instant,
     stale_published: bool,
     unsaved: bool,
+    monitor: Option<LiveMonitor>,
+    diagnose_slots: Arc<Semaphore>,
+    diagnosis: Option<oneshot::Receiver<Option<FindingsMessage>>>,
+    published_causes: Option<Vec<String>>,
+}
+
+/// Diagnoses `events` (blocking: call it on a blocking thread) and says
+/// what the daemon publishes: `None` when the events are too few.
+fn diagnose_events(
+    vessel: &str,
+    events: &[DiagEvent],
+    config: &DiagnoseConfig,
+    trigger: Trigger,
+    replay: bool,
+) -> Option<FindingsMessage> {
+    let prep = prepare(events)?;
+    let first = prep.steps.first()?.time_s;
+    let last = prep.steps.last()?.time_s;
+    let d = diagnose(&prep, config);
+    Some(FindingsMessage {
+        vessel: vessel.to_string(),
+        time: payload_time(last),
+        window_s: last - first,
+        base_model: match d.base {
+            BaseModel::Kinetic => "kinetic",
+            BaseModel::Water => "water",
+        }
+        .to_string(),
+        nominal_nis_per_dof: d.nominal.nis_per_dof,
+        trigger: trigger.name().to_string(),
+        findings: d.findings.iter().map(FindingJson::from).collect(),
+        replay,
+    })
 }
 
 impl VesselTask {
@@ -102,6 +145,7 @@ impl VesselTask {
         session: Session,
         latest: LatestStates,
         tap: OutputTap,
+        diagnose_slots: Arc<Semaphore>,
     ) -> Self {
         let mut twin =
             VesselTwin::new(settings.twin).expect("the settings' twin configuration was validated");
@@ -120,6 +164,10 @@ impl VesselTask {
             decision_window_s: 1.0,
             ..AssemblerConfig::default()
         });
+        let monitor = settings
+            .diagnose
+            .enabled
+            .then(|| LiveMonitor::new(settings.diagnose.monitor));
         Self {
             id,
             settings,
@@ -136,6 +184,10 @@ impl VesselTask {
             last_event_wall: Instant::now(),
             stale_published: false,
             unsaved: false,
+            monitor,
+            diagnose_slots,
+            diagnosis: None,
+            published_causes: None,
         }
     }
 
@@ -171,6 +223,17 @@ impl VesselTask {
         loop {
             tokio::select! {
                 biased;
+                done = async {
+                    match self.diagnosis.as_mut() {
+                        Some(rx) => rx.await.ok().flatten(),
+                        None => std::future::pending().await,
+                    }
+                }, if self.diagnosis.is_some() => {
+                    self.diagnosis = None;
+                    if let Some(findings) = done {
+                        self.publish_findings(findings, &publishers).await;
+                    }
+                }
                 ev = rx.recv() => match ev {
                     Some(ev) => {
                         self.last_event_wall = Instant::now();
@@ -211,6 +274,7 @@ impl VesselTask {
             prediction: publisher(&self.session, keys.twin_prediction(&self.id)).await?,
             alarm: publisher(&self.session, keys.twin_alarm(&self.id)).await?,
             stats: publisher(&self.session, keys.twin_stats(&self.id)).await?,
+            finding: publisher(&self.session, keys.key(&self.id, Topic::TwinFinding)).await?,
         })
     }
 
@@ -257,7 +321,17 @@ impl VesselTask {
                     let mut assembled = Vec::new();
                     for item in items {
                         match item {
-                            Ok(record) => self.assembler.push(record, &mut assembled),
+                            Ok(record) => {
+                                if let (Measurement::SpeedThroughWater { mps }, Some(m)) =
+                                    (&record.measurement, self.monitor.as_mut())
+                                {
+                                    m.push(DiagEvent::SpeedThroughWater {
+                                        time_s: record.time_s,
+                                        mps: *mps,
+                                    });
+                                }
+                                self.assembler.push(record, &mut assembled)
+                            }
                             Err(rejection) => {
                                 let reason = rejection.reason.kind().name();
                                 self.counters.reject(self.id.as_str(), reason, &rejection);
@@ -299,8 +373,13 @@ impl VesselTask {
                 }
             }
         };
-        if let Err(r) = self.twin.on_propellers(&speeds) {
-            self.counters.reject(self.id.as_str(), r.reason(), &r);
+        match self.twin.on_propellers(&speeds) {
+            Ok(_) => {
+                if let Some(m) = self.monitor.as_mut() {
+                    m.push(DiagEvent::Propellers(speeds));
+                }
+            }
+            Err(r) => self.counters.reject(self.id.as_str(), r.reason(), &r),
         }
     }
 
@@ -310,10 +389,79 @@ impl VesselTask {
                 self.last_fix_wall = Some(Instant::now());
                 self.stale_published = false;
                 self.unsaved = true;
+                self.monitor_fix(fix, &out);
                 self.publish_step(&out, p).await;
             }
             Err(r) => self.counters.reject(self.id.as_str(), r.reason(), &r),
         }
+    }
+
+    /// Feeds the live monitor an accepted fix and starts a diagnosis when
+    /// one is due and none is running.
+    fn monitor_fix(&mut self, fix: &GnssFix, out: &StepOutput) {
+        let Some(monitor) = self.monitor.as_mut() else {
+            return;
+        };
+        monitor.push(DiagEvent::Fix(*fix));
+        let position = (out.innovation_available[0] && out.innovation_available[1])
+            .then_some([out.innovation[0], out.innovation[1]]);
+        monitor.record_innovation(fix.time_s, position);
+        if self.diagnosis.is_some() {
+            return;
+        }
+        let Some(trigger) = monitor.due(fix.time_s) else {
+            return;
+        };
+        let events = monitor.start(fix.time_s);
+        let config = DiagnoseConfig {
+            threads: 1,
+            twin: self.settings.twin,
+            ..DiagnoseConfig::default()
+        };
+        let vessel = self.id.as_str().to_string();
+        let replay = self.replay;
+        let slots = self.diagnose_slots.clone();
+        let (tx, rx) = oneshot::channel();
+        self.diagnosis = Some(rx);
+        tracing::debug!(
+            vessel,
+            trigger = trigger.name(),
+            events = events.len(),
+            "diagnosing"
+        );
+        tokio::spawn(async move {
+            // The permit bounds the diagnoses running across the daemon; it
+            // is held until the blocking work is done.
+            let Ok(_permit) = slots.acquire_owned().await else {
+                return;
+            };
+            let result = tokio::task::spawn_blocking(move || {
+                diagnose_events(&vessel, &events, &config, trigger, replay)
+            })
+            .await
+            .unwrap_or_else(|e| {
+                tracing::error!("a diagnosis failed: {e}");
+                None
+            });
+            let _ = tx.send(result);
+        });
+    }
+
+    /// Publishes a diagnosis when its causes differ from the last published.
+    async fn publish_findings(&mut self, findings: FindingsMessage, p: &Publishers) {
+        let causes = findings.causes();
+        if self.published_causes.as_ref() == Some(&causes) {
+            return;
+        }
+        tracing::info!(
+            vessel = self.id.as_str(),
+            trigger = %findings.trigger,
+            "model findings: {}",
+            if causes.is_empty() { "none (the nominal model explains the data)".to_string() } else { causes.join(", ") }
+        );
+        self.published_causes = Some(causes);
+        self.put_json(Topic::TwinFinding, &p.finding, &findings)
+            .await;
     }
 
     async fn publish_step(&mut self, out: &StepOutput, p: &Publishers) {

@@ -34,6 +34,10 @@
 //!    on held-out data (log-likelihood, NIS per degree of freedom, position
 //!    prediction RMSE at each horizon, before and after).
 //!
+//! 7. **Live** ([`LiveMonitor`]): the daemon keeps the recent past per
+//!    vessel and diagnoses it on an interval, or earlier when the live twin's
+//!    innovations turn biased.
+//!
 //! Pure like the rest of the crate: the log comes in as values; nothing is
 //! read, no clock is used. The truth of a simulated log is never an input.
 
@@ -42,12 +46,14 @@
 #![allow(clippy::needless_range_loop)]
 
 mod fit;
+mod monitor;
 mod prepare;
 mod residuals;
 
 pub use fit::{
     Acceptance, BaseModel, Cause, DiagnoseConfig, Diagnosis, Finding, Gain, Rejected, diagnose,
 };
+pub use monitor::{BIAS_BATCHES, LiveMonitor, MonitorConfig, Trigger};
 pub use prepare::{DiagEvent, Prepared, prepare};
 pub use residuals::{
     COMPONENTS, InnovationRecord, ResidualSummary, SIGNATURES, SignatureCorrelation,

@@ -180,7 +180,12 @@ mod tests {
             .collect();
         let s = summarise(&records);
         // Serially correlated: the standard error is inflated, still a bias.
-        assert!(s.bias_z[2] > 3.0 && s.lag1[2] > 0.9, "{:?} {:?}", s.bias_z, s.lag1);
+        assert!(
+            s.bias_z[2] > 3.0 && s.lag1[2] > 0.9,
+            "{:?} {:?}",
+            s.bias_z,
+            s.lag1
+        );
         assert!(s.bias_z[0].abs() < 3.0, "{:?}", s.bias_z);
         assert!(!s.measured[1]);
         let top = s.signatures[0];

@@ -1,0 +1,419 @@
+//! The deployment files of `docker/`, checked without a Docker engine (none
+//! runs where these tests run, so the image is never built here):
+//! - `docker/Dockerfile`: every `COPY` source from the build context exists,
+//!   every `COPY --from` names an earlier stage, the `cargo build` line builds
+//!   exactly the binaries the runtime stage copies, each of them a binary
+//!   target of the workspace (`cargo metadata`), and the runtime stage runs
+//!   as a non-root user;
+//! - `docker/Dockerfile.dockerignore` keeps out no source the build needs
+//!   (including the files the crates embed with `include_bytes!`);
+//! - `docker/compose.yaml` parses as YAML; the router is the official Zenoh
+//!   image of the Zenoh version in `Cargo.lock` running
+//!   `config/zenoh-router.json5`; the daemon and the replay run binaries of
+//!   the image with files that exist, connect to the router's service name
+//!   and port, and the daemon's state directory is a named volume.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+use serde_yaml::Value as Yaml;
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .canonicalize()
+        .unwrap()
+}
+
+fn read(rel: &str) -> String {
+    std::fs::read_to_string(repo().join(rel)).unwrap_or_else(|e| panic!("{rel}: {e}"))
+}
+
+/// A Dockerfile's instructions: comments dropped, continuation lines joined,
+/// each as (INSTRUCTION, rest).
+fn instructions(text: &str) -> Vec<(String, String)> {
+    let mut out = Vec::new();
+    let mut current = String::new();
+    for line in text.lines() {
+        let trimmed = line.trim();
+        if current.is_empty() && (trimmed.is_empty() || trimmed.starts_with('#')) {
+            continue;
+        }
+        if let Some(head) = trimmed.strip_suffix('\\') {
+            current.push_str(head);
+            current.push(' ');
+            continue;
+        }
+        current.push_str(trimmed);
+        let (word, rest) = current
+            .split_once(char::is_whitespace)
+            .unwrap_or((&current, ""));
+        out.push((word.to_uppercase(), rest.trim().to_string()));
+        current.clear();
+    }
+    out
+}
+
+/// The binary targets of the workspace's members, by `cargo metadata`.
+fn workspace_binaries() -> BTreeSet<String> {
+    let output = std::process::Command::new(env!("CARGO"))
+        .args([
+            "metadata",
+            "--no-deps",
+            "--offline",
+            "--format-version",
+            "1",
+        ])
+        .current_dir(repo())
+        .output()
+        .expect("cargo metadata runs");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let meta: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    meta["packages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|p| p["targets"].as_array().unwrap().iter())
+        .filter(|t| t["kind"].as_array().unwrap().iter().any(|k| k == "bin"))
+        .map(|t| t["name"].as_str().unwrap().to_string())
+        .collect()
+}
+
+/// What the Dockerfile builds and ships.
+struct Image {
+    /// `--bin` arguments of the `cargo build` line.
+    built: BTreeSet<String>,
+    /// Binaries copied out of target/release.
+    copied: BTreeSet<String>,
+    /// The runtime stage's user and working directory.
+    user: String,
+    workdir: String,
+    /// The default command's program.
+    cmd: String,
+}
+
+fn image() -> Image {
+    let text = read("docker/Dockerfile");
+    let mut stages: Vec<String> = Vec::new();
+    let mut image = Image {
+        built: BTreeSet::new(),
+        copied: BTreeSet::new(),
+        user: String::new(),
+        workdir: String::new(),
+        cmd: String::new(),
+    };
+    for (word, rest) in instructions(&text) {
+        match word.as_str() {
+            "FROM" => {
+                let name = rest
+                    .split_whitespace()
+                    .collect::<Vec<_>>()
+                    .windows(2)
+                    .find(|w| w[0].eq_ignore_ascii_case("as"))
+                    .map(|w| w[1].to_string())
+                    .unwrap_or_default();
+                stages.push(name);
+                // The runtime stage's settings are those after its FROM.
+                image.user.clear();
+                image.workdir.clear();
+            }
+            "COPY" => {
+                let words: Vec<&str> = rest.split_whitespace().collect();
+                let from = words.iter().find_map(|w| w.strip_prefix("--from="));
+                let paths: Vec<&str> = words
+                    .iter()
+                    .copied()
+                    .filter(|w| !w.starts_with("--"))
+                    .collect();
+                assert!(paths.len() >= 2, "COPY {rest}");
+                match from {
+                    Some(stage) => assert!(
+                        stages[..stages.len() - 1].iter().any(|s| s == stage),
+                        "COPY --from={stage}: no earlier stage of that name in {stages:?}"
+                    ),
+                    None => {
+                        for src in &paths[..paths.len() - 1] {
+                            assert!(
+                                repo().join(src).exists(),
+                                "COPY {src}: not in the build context (the repository root)"
+                            );
+                        }
+                    }
+                }
+            }
+            "RUN" if rest.contains("cargo build") => {
+                let words: Vec<&str> = rest.split_whitespace().collect();
+                for w in words.windows(2) {
+                    if w[0] == "--bin" {
+                        image.built.insert(w[1].to_string());
+                    }
+                }
+                assert!(words.contains(&"--release"), "{rest}");
+                assert!(words.contains(&"--locked"), "{rest}");
+                for w in &words {
+                    if let Some(bin) = w.strip_prefix("target/release/") {
+                        image.copied.insert(bin.to_string());
+                    }
+                }
+            }
+            "USER" => image.user = rest,
+            "WORKDIR" => image.workdir = rest,
+            "CMD" => {
+                let cmd: Vec<String> = serde_json::from_str(&rest).expect("CMD in exec form");
+                image.cmd = cmd[0].clone();
+            }
+            _ => {}
+        }
+    }
+    assert_eq!(stages.len(), 2, "a build stage and a runtime stage");
+    image
+}
+
+#[test]
+fn the_dockerfile_builds_the_workspace_binaries_it_ships() {
+    let image = image();
+    let workspace = workspace_binaries();
+    println!(
+        "Dockerfile builds {:?}, ships {:?}, runs {:?} as {:?} in {:?}; workspace binaries {workspace:?}",
+        image.built, image.copied, image.cmd, image.user, image.workdir
+    );
+    let expected: BTreeSet<String> = ["twind", "twin-replay", "twin"].map(String::from).into();
+    assert_eq!(image.built, expected);
+    assert_eq!(image.copied, expected);
+    for bin in &image.built {
+        assert!(
+            workspace.contains(bin),
+            "{bin} is not a binary of the workspace"
+        );
+    }
+    assert!(expected.contains(&image.cmd));
+    let user = image.user.split(':').next().unwrap();
+    assert!(
+        !user.is_empty() && user != "root" && user != "0",
+        "runs as {user:?}"
+    );
+    // The binaries find config/ and data/ relative to the working directory.
+    assert_eq!(image.workdir, "/app");
+}
+
+/// Whether a `.dockerignore` pattern (as used here: plain paths, `*` in a
+/// final component's suffix, `**/` for any depth) excludes `path`.
+fn ignored(patterns: &[String], path: &str) -> bool {
+    let components: Vec<&str> = path.split('/').collect();
+    patterns.iter().any(|p| {
+        let (anywhere, p) = match p.strip_prefix("**/") {
+            Some(rest) => (true, rest),
+            None => (false, p.as_str()),
+        };
+        let matches = |c: &str| match p.strip_suffix('*') {
+            Some(prefix) => c.starts_with(prefix),
+            None => c == p,
+        };
+        if p.contains('/') {
+            let depth = p.split('/').count();
+            components.len() >= depth && components[..depth].join("/") == p
+        } else if anywhere {
+            components.iter().any(|c| matches(c))
+        } else {
+            matches(components[0])
+        }
+    })
+}
+
+/// Files the crates embed at compile time (`include_bytes!`/`include_str!`),
+/// relative to the repository root.
+fn embedded_files() -> Vec<String> {
+    let root = repo();
+    let mut found = Vec::new();
+    let mut dirs = vec![root.join("crates")];
+    while let Some(dir) = dirs.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap().flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                dirs.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                let text = std::fs::read_to_string(&path).unwrap();
+                for marker in ["include_bytes!(\"", "include_str!(\""] {
+                    for piece in text.split(marker).skip(1) {
+                        let Some(rel) = piece.split('"').next() else {
+                            continue;
+                        };
+                        let Ok(file) = path.parent().unwrap().join(rel).canonicalize() else {
+                            continue;
+                        };
+                        if let Ok(inside) = file.strip_prefix(&root) {
+                            found.push(inside.to_string_lossy().into_owned());
+                        }
+                    }
+                }
+            }
+        }
+    }
+    found.sort();
+    found.dedup();
+    found
+}
+
+#[test]
+fn the_dockerignore_keeps_what_the_build_needs() {
+    let patterns: Vec<String> = read("docker/Dockerfile.dockerignore")
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        .map(|l| l.trim_end_matches('/').to_string())
+        .collect();
+    assert!(
+        patterns
+            .iter()
+            .all(|p| !p.starts_with('!') && !p.contains('?') && !p.contains('[')),
+        "the checker below understands plain patterns only: {patterns:?}"
+    );
+    // Sanity of the matcher, then what must stay out and what must go in.
+    for out in [
+        "target/release/twind",
+        ".git/HEAD",
+        "fuzz/target/x",
+        "target-deploy/x",
+    ] {
+        assert!(ignored(&patterns, out), "{out} should be left out");
+    }
+    let embedded = embedded_files();
+    println!("embedded by the crates: {embedded:?}");
+    assert!(!embedded.is_empty());
+    let needed = [
+        "Cargo.toml",
+        "Cargo.lock",
+        "crates",
+        "tests",
+        "config",
+        "data",
+        "bench",
+    ];
+    for path in needed
+        .iter()
+        .copied()
+        .chain(embedded.iter().map(String::as_str))
+    {
+        assert!(
+            !ignored(&patterns, path),
+            "{path} is needed by the build but docker/Dockerfile.dockerignore leaves it out"
+        );
+    }
+}
+
+fn strings(v: &Yaml) -> Vec<String> {
+    match v {
+        Yaml::Sequence(s) => s
+            .iter()
+            .filter_map(|x| x.as_str().map(String::from))
+            .collect(),
+        Yaml::String(s) => vec![s.clone()],
+        _ => Vec::new(),
+    }
+}
+
+/// The Zenoh version of Cargo.lock.
+fn locked_zenoh_version() -> String {
+    let lock = read("Cargo.lock");
+    let at = lock
+        .find("\nname = \"zenoh\"\n")
+        .expect("zenoh in Cargo.lock");
+    let version = lock[at..]
+        .lines()
+        .find_map(|l| l.strip_prefix("version = \""))
+        .unwrap();
+    version.trim_end_matches('"').to_string()
+}
+
+#[test]
+fn the_compose_file_wires_router_daemon_and_replay() {
+    let compose: Yaml = serde_yaml::from_str(&read("docker/compose.yaml")).expect("valid YAML");
+    let services = &compose["services"];
+    let image = image();
+    let docker_dir = repo().join("docker");
+
+    // The router: the official image, the Zenoh version of Cargo.lock, the
+    // shipped router configuration mounted where its command reads it.
+    let router = &services["router"];
+    let router_image = router["image"].as_str().unwrap();
+    assert_eq!(
+        router_image,
+        format!("eclipse/zenoh:{}", locked_zenoh_version())
+    );
+    let command = strings(&router["command"]);
+    let config_in_container = &command[command.iter().position(|a| a == "-c").unwrap() + 1];
+    let mount = strings(&router["volumes"])
+        .into_iter()
+        .find(|v| v.split(':').nth(1) == Some(config_in_container.as_str()))
+        .expect("the router's configuration is mounted");
+    let host = mount.split(':').next().unwrap();
+    let host_file = docker_dir.join(host).canonicalize().unwrap();
+    assert_eq!(host_file, repo().join("config/zenoh-router.json5"));
+    let router_config = zenoh::Config::from_file(&host_file).unwrap();
+    let listen: Vec<String> =
+        serde_json::from_str(&router_config.get_json("listen/endpoints").unwrap()).unwrap();
+    let router_port = listen[0].rsplit(':').next().unwrap();
+
+    // Our services: the image built from this Dockerfile, programs of it,
+    // files that exist, the router by service name and port.
+    let mut volumes_used = Vec::new();
+    for name in ["twind", "replay"] {
+        let service = &services[name];
+        let build = &service["build"];
+        let context = docker_dir
+            .join(build["context"].as_str().unwrap())
+            .canonicalize()
+            .unwrap();
+        assert_eq!(context, repo(), "{name}: build context");
+        assert!(
+            context
+                .join(build["dockerfile"].as_str().unwrap())
+                .is_file()
+        );
+        let mut args = strings(&service["entrypoint"]);
+        args.extend(strings(&service["command"]));
+        // `sh -c "... && exec PROGRAM ARGS"`: the words after `exec`.
+        let words: Vec<String> = if args.first().map(String::as_str) == Some("/bin/sh") {
+            let script = args.last().unwrap();
+            let after = script.split("exec ").nth(1).expect("exec in the script");
+            after.split_whitespace().map(String::from).collect()
+        } else {
+            args
+        };
+        assert!(
+            image.copied.contains(&words[0]),
+            "{name} runs {}, not a binary of the image",
+            words[0]
+        );
+        for w in &words {
+            if w.starts_with("config/") || w.starts_with("data/") {
+                assert!(
+                    repo().join(w).is_file(),
+                    "{name}: {w} is not in the repository"
+                );
+            }
+        }
+        let connect = &words[words.iter().position(|w| w == "--connect").unwrap() + 1];
+        assert_eq!(connect, &format!("tcp/router:{router_port}"), "{name}");
+        for v in strings(&service["volumes"]) {
+            volumes_used.push((name, v));
+        }
+        println!("{name}: {}", words.join(" "));
+    }
+    // The daemon keeps its calibrations on a named volume.
+    let twind_words = strings(&services["twind"]["command"]);
+    let state_dir = &twind_words[twind_words.iter().position(|w| w == "--state-dir").unwrap() + 1];
+    let (_, state_volume) = volumes_used
+        .iter()
+        .find(|(n, v)| *n == "twind" && v.split(':').nth(1) == Some(state_dir.as_str()))
+        .expect("the state directory is a volume");
+    let volume_name = state_volume.split(':').next().unwrap();
+    assert!(
+        compose["volumes"].get(volume_name).is_some(),
+        "{volume_name} is not a named volume of the file"
+    );
+}
