@@ -12,6 +12,8 @@
 //!   cause, the gain on held-out data (text, JSON, SVG).
 //! - [`real_logs`]: `twin report real-logs`: analyze over the real logs, as a
 //!   markdown table.
+//! - [`diagnose_real`]: `twin report diagnose-real`: diagnose over the real
+//!   logs, as markdown, with the instrument's own current where there is one.
 //! - [`demo`]: the bundled demo trial (`data/demo/`) and how it is made.
 //! - [`trials`]: the seed's sea-trial matrix re-run in the simulator with
 //!   known truth: the seed's method beside the extended twin
@@ -20,6 +22,7 @@
 pub mod analyze;
 pub mod demo;
 pub mod diagnose;
+pub mod diagnose_real;
 pub mod plots;
 pub mod quality;
 pub mod real_logs;

@@ -92,6 +92,21 @@ enum Report {
         #[arg(long, default_value = twin_cli::real_logs::DEFAULT_DIR)]
         dir: PathBuf,
     },
+    /// `twin diagnose` over every real log of a directory (markdown), with
+    /// the instrument's own current beside the twin's where a log has it.
+    DiagnoseReal {
+        /// The directory of logs.
+        #[arg(long, default_value = twin_cli::real_logs::DEFAULT_DIR)]
+        dir: PathBuf,
+    },
+}
+
+/// The diagnosis settings of the command line: the defaults, on every core.
+fn diagnose_config() -> twin_core::diagnose::DiagnoseConfig {
+    twin_core::diagnose::DiagnoseConfig {
+        threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        ..Default::default()
+    }
 }
 
 fn main() -> ExitCode {
@@ -199,12 +214,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             plot,
             source,
         } => {
-            let config = twin_core::diagnose::DiagnoseConfig {
-                threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
-                ..Default::default()
-            };
-            let report = twin_cli::diagnose::diagnose_path(&log, parse_source(&source)?, &config)
-                .with_context(|| format!("diagnosing {}", log.display()))?;
+            let report =
+                twin_cli::diagnose::diagnose_path(&log, parse_source(&source)?, &diagnose_config())
+                    .with_context(|| format!("diagnosing {}", log.display()))?;
             let mut stdout = std::io::stdout().lock();
             if json {
                 writeln!(stdout, "{}", serde_json::to_string_pretty(&report)?)?;
@@ -218,6 +230,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     eprintln!("wrote {}", p.display());
                 }
             }
+        }
+        Command::Report {
+            what: Report::DiagnoseReal { dir },
+        } => {
+            let logs = twin_cli::diagnose_real::diagnose_dir(&dir, &diagnose_config())
+                .with_context(|| format!("diagnosing the logs of {}", dir.display()))?;
+            print!("{}", twin_cli::diagnose_real::markdown(&logs));
         }
         Command::Report {
             what: Report::Trials { seeds },

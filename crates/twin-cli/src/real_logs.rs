@@ -34,27 +34,37 @@ pub enum ReportError {
     Analyze(#[from] AnalyzeError),
 }
 
-/// Analyses every log in `dir` (name order); skips files in no log format.
-pub fn analyze_dir(
-    dir: &Path,
-    options: &AnalyzeOptions,
-) -> Result<Vec<(String, Analysis)>, ReportError> {
-    let listing = std::fs::read_dir(dir).map_err(|source| ReportError::List {
-        path: dir.to_path_buf(),
-        source,
-    })?;
-    let mut paths: Vec<PathBuf> = listing
+/// The files of `dir` in name order, each with its file name.
+pub fn files_by_name(dir: &Path) -> Result<Vec<(String, PathBuf)>, std::io::Error> {
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)?
         .filter_map(Result::ok)
         .map(|e| e.path())
         .filter(|p| p.is_file())
         .collect();
     paths.sort();
+    Ok(paths
+        .into_iter()
+        .map(|p| {
+            let name = p
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            (name, p)
+        })
+        .collect())
+}
+
+/// Analyses every log in `dir` (name order); skips files in no log format.
+pub fn analyze_dir(
+    dir: &Path,
+    options: &AnalyzeOptions,
+) -> Result<Vec<(String, Analysis)>, ReportError> {
+    let paths = files_by_name(dir).map_err(|source| ReportError::List {
+        path: dir.to_path_buf(),
+        source,
+    })?;
     let mut out = Vec::new();
-    for path in paths {
-        let name = path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
+    for (name, path) in paths {
         match analyze_path(&path, options) {
             Ok(a) => out.push((name, a)),
             Err(AnalyzeError::Log {

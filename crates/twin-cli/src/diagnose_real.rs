@@ -1,0 +1,242 @@
+//! `twin report diagnose-real`: `twin diagnose` over every log of a
+//! directory (by default `tests/fixtures/real/`), as markdown for the
+//! README: per log what the nominal model gets wrong on held-out data, the
+//! causes named with their parameters and uncertainty, the gain each brings
+//! on held-out data, and, where a log carries the instrument's own set and
+//! drift (NMEA 2000 PGN 130577), the current estimate beside it with their
+//! difference.
+//!
+//! Files in no log format (README, licences) are skipped; a log with too few
+//! position fixes to diagnose gets a row that says so; every other failure
+//! is an error. Logs are taken in name order.
+
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+
+use twin_core::diagnose::{COMPONENTS, DiagnoseConfig};
+use twin_wire::SourceChoice;
+use twin_wire::outputs::FindingJson;
+use twin_wire::read::OpenError;
+
+use crate::diagnose::{DiagnoseError, DiagnoseReport, diagnose_path};
+use crate::real_logs::files_by_name;
+
+/// Why the report failed.
+#[derive(Debug, thiserror::Error)]
+pub enum DiagnoseRealError {
+    /// The directory cannot be listed.
+    #[error("cannot list {path}: {source}")]
+    List {
+        /// The directory.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A log could not be diagnosed.
+    #[error(transparent)]
+    Diagnose(#[from] DiagnoseError),
+}
+
+/// One log's outcome.
+#[derive(Debug)]
+pub enum LogOutcome {
+    /// Diagnosed.
+    Diagnosed(Box<DiagnoseReport>),
+    /// Too few position fixes (the log has no position records).
+    TooFewFixes,
+}
+
+/// Diagnoses every log in `dir` (name order).
+pub fn diagnose_dir(
+    dir: &Path,
+    config: &DiagnoseConfig,
+) -> Result<Vec<(String, LogOutcome)>, DiagnoseRealError> {
+    let files = files_by_name(dir).map_err(|source| DiagnoseRealError::List {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let mut out = Vec::new();
+    for (name, path) in files {
+        match diagnose_path(&path, SourceChoice::Best, config) {
+            Ok(r) => out.push((name, LogOutcome::Diagnosed(Box::new(r)))),
+            Err(DiagnoseError::TooShort { .. }) => out.push((name, LogOutcome::TooFewFixes)),
+            Err(DiagnoseError::Log {
+                source: OpenError::UnknownFormat | OpenError::Empty,
+                ..
+            }) => continue,
+            Err(e) => return Err(e.into()),
+        }
+    }
+    Ok(out)
+}
+
+/// The parameters a reader looks at first, per cause (the others, e.g. the
+/// current's north and east components, are in `twin diagnose --json`).
+fn headline_parameters(cause: &str) -> &'static [&'static str] {
+    match cause {
+        "current" => &["speed_mps", "toward_deg"],
+        "thruster_loss" => &["side", "loss"],
+        "heading_offset" => &["offset_deg"],
+        "sog_scale" | "stw_scale" => &["scale"],
+        "gnss_latency" => &["latency_s"],
+        "lever_arm" => &["x_m", "y_m"],
+        "sideslip" => &["lateral_mps_per_radps"],
+        _ => &[],
+    }
+}
+
+fn parameters_text(f: &FindingJson) -> String {
+    let wanted = headline_parameters(&f.cause);
+    f.parameters
+        .iter()
+        .filter(|(k, _)| wanted.is_empty() || wanted.contains(&k.as_str()))
+        .map(|(k, v)| match (v.as_f64(), f.uncertainty.get(k)) {
+            (Some(x), Some(s)) => format!("{k} {x:.3} ± {s:.3}"),
+            (Some(x), None) => format!("{k} {x:.3}"),
+            _ => format!("{k} {}", v.as_str().unwrap_or_default()),
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn what_is_wrong(r: &DiagnoseReport) -> String {
+    let n = &r.nominal;
+    let mut biased: Vec<(usize, f64)> = (0..COMPONENTS.len())
+        .filter(|&c| n.measured[c] && n.bias_z[c].abs() > 3.0)
+        .map(|c| (c, n.bias_z[c]))
+        .collect();
+    biased.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+    let mut parts = vec![format!("NIS/dof {:.2}", n.nis_per_dof)];
+    parts.extend(
+        biased
+            .iter()
+            .take(3)
+            .map(|(c, z)| format!("{} biased ({z:+.1} SE)", COMPONENTS[*c])),
+    );
+    if let Some(s) = n.signatures.iter().find(|s| s.correlation.abs() >= 0.5) {
+        parts.push(format!(
+            "{} follows {} ({:+.2})",
+            s.component, s.signature, s.correlation
+        ));
+    }
+    parts.join("; ")
+}
+
+fn gain_text(f: &FindingJson) -> String {
+    let g = &f.gain;
+    let mut s = format!(
+        "log-lik +{:.0}; NIS/dof {:.2} → {:.2}",
+        g.heldout_nll_gain, g.nis_per_dof.before, g.nis_per_dof.after
+    );
+    for h in &g.prediction_rmse_m {
+        let _ = write!(
+            s,
+            "; {:.0} s RMSE {:.1} → {:.1} m",
+            h.horizon_s, h.before, h.after
+        );
+    }
+    s
+}
+
+/// The instrument comparison of a report with both a current finding and
+/// the instrument's set and drift: `(estimate [speed, toward], instrument
+/// [speed, toward], |difference| m/s, direction difference deg)`.
+pub fn instrument_comparison(r: &DiagnoseReport) -> Option<([f64; 2], [f64; 2], f64, f64)> {
+    let i = r.instrument.as_ref()?;
+    let f = r.findings.iter().find(|f| f.cause == "current")?;
+    let get = |k: &str| f.parameters.get(k).and_then(|v| v.as_f64());
+    let (speed, toward) = (get("speed_mps")?, get("toward_deg")?);
+    let vec = |s: f64, d: f64| [s * d.to_radians().cos(), s * d.to_radians().sin()];
+    let (a, b) = (vec(speed, toward), vec(i.speed_mps, i.toward_deg));
+    let diff = (a[0] - b[0]).hypot(a[1] - b[1]);
+    let ddir = (toward - i.toward_deg + 540.0).rem_euclid(360.0) - 180.0;
+    Some(([speed, toward], [i.speed_mps, i.toward_deg], diff, ddir))
+}
+
+/// The markdown of the diagnosed logs.
+pub fn markdown(logs: &[(String, LogOutcome)]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "| log | base model | what the nominal model gets wrong (held-out) | cause named (± 1σ) | gain on held-out data |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|");
+    for (name, outcome) in logs {
+        let r = match outcome {
+            LogOutcome::TooFewFixes => {
+                let _ = writeln!(
+                    s,
+                    "| {name} | - | no position records: nothing to diagnose | - | - |"
+                );
+                continue;
+            }
+            LogOutcome::Diagnosed(r) => r,
+        };
+        let measured: Vec<&str> = [
+            (r.measured.heading, "heading"),
+            (r.measured.speed_through_water, "STW"),
+            (r.measured.propellers, "propellers"),
+        ]
+        .iter()
+        .filter(|(m, _)| *m)
+        .map(|(_, n)| *n)
+        .collect();
+        let model = format!(
+            "{} ({} steps; {})",
+            r.base_model,
+            r.steps,
+            if measured.is_empty() {
+                "position only".to_string()
+            } else {
+                measured.join(", ")
+            }
+        );
+        if r.findings.is_empty() {
+            let _ = writeln!(
+                s,
+                "| {name} | {model} | {} | none: no cause clears the bars | - |",
+                what_is_wrong(r)
+            );
+            continue;
+        }
+        for (i, f) in r.findings.iter().enumerate() {
+            let (log, model, wrong) = if i == 0 {
+                (name.as_str(), model.clone(), what_is_wrong(r))
+            } else {
+                ("", String::new(), "(then)".to_string())
+            };
+            let _ = writeln!(
+                s,
+                "| {log} | {model} | {wrong} | `{}`: {} | {} |",
+                f.cause,
+                parameters_text(f),
+                gain_text(f)
+            );
+        }
+    }
+    let comparisons: Vec<String> = logs
+        .iter()
+        .filter_map(|(name, o)| match o {
+            LogOutcome::Diagnosed(r) => instrument_comparison(r).map(|c| (name, r, c)),
+            LogOutcome::TooFewFixes => None,
+        })
+        .map(|(name, r, (est, inst, diff, ddir))| {
+            format!(
+                "- {name}: the twin's current {:.2} m/s toward {:.0}° against the instrument's own set and drift (PGN 130577, mean of {} messages) {:.2} m/s toward {:.0}°: difference {diff:.2} m/s as a vector, {:+.2} m/s in speed, {ddir:+.0}° in direction.",
+                est[0],
+                est[1],
+                r.instrument.as_ref().map_or(0, |i| i.samples),
+                inst[0],
+                inst[1],
+                est[0] - inst[0],
+            )
+        })
+        .collect();
+    if !comparisons.is_empty() {
+        let _ = writeln!(s);
+        for c in comparisons {
+            let _ = writeln!(s, "{c}");
+        }
+    }
+    s
+}
