@@ -18,13 +18,20 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 README = ROOT / "README.md"
 
-# name -> the shell command whose standard output is the block's body.
+# name -> the shell command whose standard output is the block's body
+# (markdown as printed). Blocks in FENCED are plain text, put in a code fence.
+FENCED = {"seed-cases", "demo", "bench-diagnose", "bench-analyze"}
 BLOCKS = {
+    "seed-cases": "cargo test --release -q -p twin-core --test seed_cases -- --nocapture --test-threads=1 2>/dev/null"
+    " | grep -E '^[.]?(case|authors|zero)' | sed 's/^[.]//'",
+    "demo": "cargo run --release -q -p twind -- --demo --no-web --demo-rate 50 2>/dev/null",
     "trials": "cargo run --release -q -p twin-cli -- report trials --seeds 3",
     "bench-numpy": "cargo run --release -q -p twin-bench -- numpy",
     "bench-core": "cargo run --release -q -p twin-bench -- core",
     "analyze-real": "cargo run --release -q -p twin-cli -- report real-logs",
     "diagnose-real": "cargo run --release -q -p twin-cli -- report diagnose-real",
+    "bench-diagnose": "cargo bench -q -p twin-cli --bench diagnose 2>/dev/null | grep -E '^diagnose/|time:'",
+    "bench-analyze": "cargo bench -q -p twin-cli --bench analyze 2>/dev/null | grep -E '^analyze/|time:'",
     "bench-daemon": "cargo run --release -q -p twin-bench -- daemon --quick",
 }
 
@@ -46,7 +53,10 @@ def main() -> None:
         if not pattern.search(text):
             raise SystemExit(f"README.md has no block '{name}'")
         today = datetime.date.today().isoformat()
-        body = f"Generated {today} by `{command}`:\n\n" + run(command) + "\n"
+        output = run(command)
+        if name in FENCED:
+            output = "```text\n" + output + "```\n"
+        body = f"Generated {today} by `{command}`:\n\n" + output + "\n"
         text = pattern.sub(lambda m: m.group(1) + body + m.group(3), text)
         print(f"updated {name}")
     README.write_text(text)
