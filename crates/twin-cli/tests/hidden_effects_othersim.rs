@@ -1,0 +1,457 @@
+//! Hidden-effect tests of `twin diagnose` on logs from a simulator other than
+//! the project's own (PRODUCT.md, "Hidden effects"): `tests/othersim/otter6dof.py`,
+//! an independent 6-DOF Otter written in Python from Fossen's published
+//! model (its module doc says what it is and how it differs from `twin-sim`).
+//!
+//! A seeded random draw in this test, which the diagnosis never sees,
+//! chooses one effect per trial and its size from ranges fixed in advance:
+//!
+//! | effect | range |
+//! |---|---|
+//! | nothing | |
+//! | water current | 0.1-0.4 m/s, toward any direction (0-360 deg) |
+//! | heading-sensor offset | 3-10 deg, either sign |
+//! | SOG scale | 0.90-0.95 or 1.05-1.10 |
+//! | GNSS latency | 0.3-1.0 s |
+//! | propeller loss | 0.15-0.40, port or starboard |
+//!
+//! 36 draws: each block of six holds every kind once, in a random order.
+//! The simulator writes the log as the project's JSON lines (and a truth
+//! file the test does not read either: the truth is the draw itself),
+//! `twin_cli::diagnose::diagnose_path` diagnoses it, and the verdict uses
+//! the criteria of `hidden_effects.rs`: exactly the right cause named, its
+//! size within 20 % (a current as a vector within 20 % of its speed), and
+//! nothing named on the clean logs.
+//! A second test hides a current and a propeller loss together and requires
+//! both.
+//!
+//! Needs `python3` on the PATH with NumPy (`python3 -m pip install -r
+//! bench/requirements.txt`). Without them the tests print why and pass,
+//! unless `TWIN_BENCH_REQUIRE_NUMPY=1` is set (CI sets it), when they fail.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use twin_cli::diagnose::{DiagnoseReport, diagnose_path};
+use twin_core::diagnose::DiagnoseConfig;
+use twin_wire::SourceChoice;
+
+/// The independent simulator.
+const SIMULATOR: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../tests/othersim/otter6dof.py"
+);
+
+/// Set to 1 (CI) to fail rather than skip without Python and NumPy.
+const REQUIRE_NUMPY_VAR: &str = "TWIN_BENCH_REQUIRE_NUMPY";
+
+/// Draws in the main test.
+const DRAWS: usize = 36;
+
+/// The hidden effect of one draw, as the test knows it (the diagnosis does not).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Hidden {
+    Nothing,
+    Current { speed_mps: f64, toward_deg: f64 },
+    HeadingOffset { offset_deg: f64 },
+    SogScale { scale: f64 },
+    Latency { latency_s: f64 },
+    Loss { port: bool, loss: f64 },
+}
+
+/// The six kinds of effect, in the order `draw` numbers them.
+const KINDS: usize = 6;
+
+/// One effect of `kind` (0..6) with a random size.
+fn draw(rng: &mut StdRng, kind: usize) -> Hidden {
+    let sign = |rng: &mut StdRng| if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+    match kind {
+        0 => Hidden::Nothing,
+        1 => Hidden::Current {
+            speed_mps: rng.random_range(0.1..0.4),
+            toward_deg: rng.random_range(0.0..360.0),
+        },
+        2 => Hidden::HeadingOffset {
+            offset_deg: sign(rng) * rng.random_range(3.0..10.0),
+        },
+        3 => Hidden::SogScale {
+            scale: 1.0 + sign(rng) * rng.random_range(0.05..0.10),
+        },
+        4 => Hidden::Latency {
+            latency_s: rng.random_range(0.3..1.0),
+        },
+        _ => Hidden::Loss {
+            port: rng.random_bool(0.5),
+            loss: rng.random_range(0.15..0.40),
+        },
+    }
+}
+
+/// `DRAWS` effects: each block of six holds every kind once, in a random
+/// order, so that every kind is tried equally often.
+fn draws(rng: &mut StdRng) -> Vec<(usize, Hidden, u64)> {
+    let mut kinds = Vec::with_capacity(DRAWS);
+    while kinds.len() < DRAWS {
+        let mut block: Vec<usize> = (0..KINDS).collect();
+        // Fisher-Yates.
+        for i in (1..KINDS).rev() {
+            block.swap(i, rng.random_range(0..=i));
+        }
+        kinds.extend(block);
+    }
+    kinds
+        .into_iter()
+        .take(DRAWS)
+        .enumerate()
+        .map(|(i, kind)| (i, draw(rng, kind), rng.random_range(0..1_000_000)))
+        .collect()
+}
+
+/// The simulator's arguments for one hidden effect.
+fn simulator_args(h: Hidden) -> Vec<String> {
+    match h {
+        Hidden::Nothing => vec!["--effect".into(), "none".into()],
+        Hidden::Current {
+            speed_mps,
+            toward_deg,
+        } => vec![
+            "--effect".into(),
+            "current".into(),
+            "--current-speed-mps".into(),
+            format!("{speed_mps}"),
+            "--current-toward-deg".into(),
+            format!("{toward_deg}"),
+        ],
+        Hidden::HeadingOffset { offset_deg } => vec![
+            "--effect".into(),
+            "heading_offset".into(),
+            format!("--heading-offset-deg={offset_deg}"),
+        ],
+        Hidden::SogScale { scale } => vec![
+            "--effect".into(),
+            "sog_scale".into(),
+            "--sog-scale".into(),
+            format!("{scale}"),
+        ],
+        Hidden::Latency { latency_s } => vec![
+            "--effect".into(),
+            "latency".into(),
+            "--latency-s".into(),
+            format!("{latency_s}"),
+        ],
+        Hidden::Loss { port, loss } => vec![
+            "--effect".into(),
+            "loss".into(),
+            "--loss-side".into(),
+            if port { "port" } else { "starboard" }.into(),
+            "--loss".into(),
+            format!("{loss}"),
+        ],
+    }
+}
+
+/// Why Python with NumPy cannot run, if it cannot.
+fn python_unavailable() -> Option<String> {
+    match Command::new("python3")
+        .args(["-c", "import numpy"])
+        .output()
+    {
+        Err(e) => Some(format!("python3 cannot be run: {e}")),
+        Ok(out) if !out.status.success() => Some(format!(
+            "python3 has no NumPy (python3 -m pip install -r bench/requirements.txt): {}",
+            String::from_utf8_lossy(&out.stderr)
+                .lines()
+                .last()
+                .unwrap_or("")
+                .trim()
+        )),
+        Ok(_) => None,
+    }
+}
+
+/// True when the tests can run; prints why not, or fails when required.
+fn python_ready() -> bool {
+    let Some(reason) = python_unavailable() else {
+        return true;
+    };
+    assert!(
+        std::env::var(REQUIRE_NUMPY_VAR).as_deref() != Ok("1"),
+        "{REQUIRE_NUMPY_VAR}=1 but {reason}"
+    );
+    println!("skipped: {reason}");
+    false
+}
+
+/// A fresh directory for this test's logs.
+fn work_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("twin-othersim-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Runs the simulator with `effects` and `seed`; returns the log's path.
+fn simulate(effects: &[Hidden], seed: u64, dir: &Path, name: &str) -> PathBuf {
+    let log = dir.join(format!("{name}.jsonl"));
+    let truth = dir.join(format!("{name}.truth.json"));
+    let mut cmd = Command::new("python3");
+    cmd.arg(SIMULATOR).arg("--seed").arg(seed.to_string());
+    for h in effects {
+        cmd.args(simulator_args(*h));
+    }
+    cmd.arg("--out").arg(&log).arg("--truth").arg(&truth);
+    let out = cmd.output().expect("python3 runs");
+    assert!(
+        out.status.success(),
+        "{SIMULATOR} failed on {name}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    log
+}
+
+fn diagnose_log(log: &Path) -> DiagnoseReport {
+    diagnose_path(log, SourceChoice::Best, &DiagnoseConfig::default()).unwrap()
+}
+
+fn param(r: &DiagnoseReport, i: usize, name: &str) -> f64 {
+    r.findings[i].parameters[name].as_f64().unwrap()
+}
+
+/// Checks a diagnosis against the hidden effect (the criteria of
+/// `hidden_effects.rs`); `Err` says what is wrong.
+fn judge(h: Hidden, r: &DiagnoseReport) -> Result<(), String> {
+    let causes: Vec<&str> = r.findings.iter().map(|f| f.cause.as_str()).collect();
+    let within = |got: f64, want: f64| (got - want).abs() <= 0.2 * want.abs();
+    match h {
+        Hidden::Nothing => {
+            return if causes.is_empty() {
+                Ok(())
+            } else {
+                Err(format!("named {causes:?} on a clean log"))
+            };
+        }
+        _ if causes.len() != 1 => return Err(format!("named {causes:?}")),
+        _ => {}
+    }
+    let ok = match h {
+        Hidden::Nothing => unreachable!(),
+        Hidden::Current {
+            speed_mps,
+            toward_deg,
+        } => {
+            causes[0] == "current" && {
+                let (s, d) = (param(r, 0, "speed_mps"), param(r, 0, "toward_deg"));
+                let (tn, te) = (
+                    speed_mps * toward_deg.to_radians().cos(),
+                    speed_mps * toward_deg.to_radians().sin(),
+                );
+                let (gn, ge) = (s * d.to_radians().cos(), s * d.to_radians().sin());
+                (gn - tn).hypot(ge - te) <= 0.2 * speed_mps
+            }
+        }
+        Hidden::HeadingOffset { offset_deg } => {
+            causes[0] == "heading_offset" && within(param(r, 0, "offset_deg"), offset_deg)
+        }
+        Hidden::SogScale { scale } => {
+            causes[0] == "sog_scale" && within(param(r, 0, "scale") - 1.0, scale - 1.0)
+        }
+        Hidden::Latency { latency_s } => {
+            causes[0] == "gnss_latency" && within(param(r, 0, "latency_s"), latency_s)
+        }
+        Hidden::Loss { port, loss } => {
+            causes[0] == "thruster_loss"
+                && r.findings[0].parameters["side"] == if port { "port" } else { "starboard" }
+                && within(param(r, 0, "loss"), loss)
+        }
+    };
+    if ok {
+        Ok(())
+    } else {
+        Err(format!(
+            "named {:?} with {:?}",
+            causes, r.findings[0].parameters
+        ))
+    }
+}
+
+/// The hidden effect in the table's words.
+fn describe(h: Hidden) -> String {
+    match h {
+        Hidden::Nothing => "nothing".into(),
+        Hidden::Current {
+            speed_mps,
+            toward_deg,
+        } => format!("current {speed_mps:.3} m/s toward {toward_deg:.1} deg"),
+        Hidden::HeadingOffset { offset_deg } => format!("heading offset {offset_deg:+.2} deg"),
+        Hidden::SogScale { scale } => format!("SOG scale {scale:.4}"),
+        Hidden::Latency { latency_s } => format!("GNSS latency {latency_s:.3} s"),
+        Hidden::Loss { port, loss } => {
+            format!("{} loss {loss:.3}", if port { "port" } else { "starboard" })
+        }
+    }
+}
+
+/// The findings in the table's words.
+fn named(r: &DiagnoseReport) -> String {
+    if r.findings.is_empty() {
+        return "nothing".into();
+    }
+    r.findings
+        .iter()
+        .map(|f| {
+            let p = |n: &str| f.parameters[n].as_f64().unwrap_or(f64::NAN);
+            let what = match f.cause.as_str() {
+                "current" => format!(
+                    "current {:.3} m/s toward {:.1} deg",
+                    p("speed_mps"),
+                    p("toward_deg")
+                ),
+                "heading_offset" => format!("heading offset {:+.2} deg", p("offset_deg")),
+                "sog_scale" => format!("SOG scale {:.4}", p("scale")),
+                "gnss_latency" => format!("GNSS latency {:.3} s", p("latency_s")),
+                "thruster_loss" => format!(
+                    "{} loss {:.3}",
+                    f.parameters["side"].as_str().unwrap_or("?"),
+                    p("loss")
+                ),
+                "lever_arm" => format!("lever arm x {:.2} m, y {:.2} m", p("x_m"), p("y_m")),
+                other => format!("{other} {:?}", f.parameters),
+            };
+            format!("{what} (gain {:.0})", f.gain.heldout_nll_gain)
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// One draw's outcome.
+struct Outcome {
+    draw: usize,
+    hidden: Hidden,
+    /// The simulator's seed.
+    seed: u64,
+    verdict: Result<(), String>,
+    /// What the diagnosis named, as text.
+    named: String,
+}
+
+#[test]
+fn hidden_effects_are_named_on_logs_of_an_independent_simulator() {
+    if !python_ready() {
+        return;
+    }
+    let dir = work_dir("draws");
+    let mut rng = StdRng::seed_from_u64(20250314);
+    let draws = draws(&mut rng);
+    // Two threads (the machine has two cores), draws dealt alternately so
+    // both get a mix; each runs the simulator, then the diagnosis.
+    let mut results: Vec<Outcome> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..2)
+            .map(|t| {
+                let (draws, dir) = (&draws, &dir);
+                s.spawn(move || {
+                    draws
+                        .iter()
+                        .filter(|(i, _, _)| i % 2 == t)
+                        .map(|(i, h, seed)| {
+                            let log = simulate(&[*h], *seed, dir, &format!("draw-{i:02}"));
+                            let r = diagnose_log(&log);
+                            Outcome {
+                                draw: *i,
+                                hidden: *h,
+                                seed: *seed,
+                                verdict: judge(*h, &r),
+                                named: named(&r),
+                            }
+                        })
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap())
+            .collect()
+    });
+    results.sort_by_key(|r| r.draw);
+    let mut failures = Vec::new();
+    println!("| draw | seed | hidden | named by twin diagnose | verdict |");
+    println!("|---|---|---|---|---|");
+    for o in &results {
+        println!(
+            "| {:2} | {} | {} | {} | {} |",
+            o.draw,
+            o.seed,
+            describe(o.hidden),
+            o.named,
+            match &o.verdict {
+                Ok(()) => "right".to_string(),
+                Err(e) => format!("WRONG: {e}"),
+            }
+        );
+        if o.verdict.is_err() {
+            failures.push(o.draw);
+        }
+    }
+    let kinds = |f: fn(&Hidden) -> bool| results.iter().filter(|o| f(&o.hidden)).count();
+    println!(
+        "{} draws: {} clean, {} current, {} heading offset, {} SOG scale, {} latency, {} loss; wrong: {failures:?}",
+        results.len(),
+        kinds(|h| matches!(h, Hidden::Nothing)),
+        kinds(|h| matches!(h, Hidden::Current { .. })),
+        kinds(|h| matches!(h, Hidden::HeadingOffset { .. })),
+        kinds(|h| matches!(h, Hidden::SogScale { .. })),
+        kinds(|h| matches!(h, Hidden::Latency { .. })),
+        kinds(|h| matches!(h, Hidden::Loss { .. })),
+    );
+    if failures.is_empty() {
+        let _ = std::fs::remove_dir_all(&dir);
+    } else {
+        println!("logs kept in {}", dir.display());
+    }
+    assert!(failures.is_empty(), "wrong diagnoses: {failures:?}");
+}
+
+#[test]
+fn a_current_and_a_propeller_loss_are_both_named_on_the_other_simulator() {
+    if !python_ready() {
+        return;
+    }
+    let dir = work_dir("combined");
+    let log = simulate(
+        &[
+            Hidden::Current {
+                speed_mps: 0.25,
+                toward_deg: 200.0,
+            },
+            Hidden::Loss {
+                port: false,
+                loss: 0.22,
+            },
+        ],
+        4242,
+        &dir,
+        "combined",
+    );
+    let r = diagnose_log(&log);
+    println!("{}", named(&r));
+    let mut causes: Vec<&str> = r.findings.iter().map(|f| f.cause.as_str()).collect();
+    causes.sort();
+    assert_eq!(causes, ["current", "thruster_loss"]);
+    let cur = r.findings.iter().find(|f| f.cause == "current").unwrap();
+    let loss = r
+        .findings
+        .iter()
+        .find(|f| f.cause == "thruster_loss")
+        .unwrap();
+    // The current as a vector within 20 % of its speed; the loss within 20 %.
+    let (s, d) = (
+        cur.parameters["speed_mps"].as_f64().unwrap(),
+        cur.parameters["toward_deg"].as_f64().unwrap().to_radians(),
+    );
+    let t = 200f64.to_radians();
+    assert!((s * d.cos() - 0.25 * t.cos()).hypot(s * d.sin() - 0.25 * t.sin()) <= 0.05);
+    assert_eq!(loss.parameters["side"], "starboard");
+    assert!((loss.parameters["loss"].as_f64().unwrap() - 0.22).abs() <= 0.044);
+    let _ = std::fs::remove_dir_all(&dir);
+}
