@@ -23,11 +23,19 @@
 //!   component has a zero row in `H` and a zero innovation;
 //! - the measurement model may be nonlinear (`H` is its Jacobian at the
 //!   predicted state), and angle innovations are wrapped.
+//!
+//! Computed, not changed: `Sigma` is factorised once per step as `L D L^T`
+//! (no square roots) and every solve with it reuses the factor; steps 8-10
+//! go through the push-through identity, a `P x P` inverse in place of
+//! factorising the `M x M` `Lambda^-1` (see the step's comments). Both give
+//! the recursion's numbers to rounding (`twin-bench numpy` holds them to the
+//! NumPy reference, which codes the steps as written).
 
 use nalgebra::{SMatrix, SVector};
 
 use crate::linalg::{
-    cholesky, cholesky_solve, mul, mul_sparse_left, mul_sparse_right, mul_t, sym_mul_t_sparse,
+    cholesky, inverse_small, ldl, mul, mul_sparse_left, mul_sparse_right, mul_t, mul_tn,
+    sym_mul_t_sparse,
 };
 
 use crate::geodesy::wrap_pi;
@@ -153,18 +161,44 @@ impl<const N: usize, const M: usize, const P: usize> AekfState<N, M, P> {
     /// diagonal and the fault covariance a non-negative one (zero when the
     /// faults are frozen).
     pub fn is_sane(&self) -> bool {
-        self.x.iter().all(|v| v.is_finite())
-            && self.p.iter().all(|v| v.is_finite())
-            && self.s.iter().all(|v| v.is_finite())
-            && self.theta.iter().all(|v| v.is_finite())
-            && self.upsilon.iter().all(|v| v.is_finite())
-            && self.held_information.iter().all(|v| v.is_finite())
-            && self.recent_information.iter().all(|v| v.is_finite())
-            && self.process_noise_density.iter().all(|v| v.is_finite())
-            && self.measurement_noise.iter().all(|v| v.is_finite())
-            && self.p.diagonal().iter().all(|v| *v > 0.0)
-            && self.s.diagonal().iter().all(|v| *v >= 0.0)
+        let all_finite = poison(&self.x)
+            + poison(&self.p)
+            + poison(&self.s)
+            + poison(&self.theta)
+            + poison(&self.upsilon)
+            + poison(&self.held_information)
+            + poison(&self.recent_information)
+            + poison(&self.process_noise_density)
+            + poison(&self.measurement_noise)
+            == 0.0;
+        let mut diagonals_ok = true;
+        for i in 0..N {
+            diagonals_ok &= self.p[(i, i)] > 0.0;
+        }
+        for i in 0..P {
+            diagonals_ok &= self.s[(i, i)] >= 0.0;
+        }
+        all_finite & diagonals_ok
     }
+}
+
+/// 0 if every entry of `m` is finite, NaN otherwise: `v * 0` is 0 for a
+/// finite `v` and NaN for NaN and the infinities. Sums in two independent
+/// lanes without branches, so that the check (on the filter's every step)
+/// is a handful of vector instructions rather than a loop of tests.
+#[inline(always)]
+fn poison<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> f64 {
+    let values = m.as_slice();
+    let mut lanes = [0.0f64; 2];
+    let mut pairs = values.chunks_exact(2);
+    for pair in pairs.by_ref() {
+        lanes[0] += pair[0] * 0.0;
+        lanes[1] += pair[1] * 0.0;
+    }
+    for v in pairs.remainder() {
+        lanes[0] += v * 0.0;
+    }
+    lanes[0] + lanes[1]
 }
 
 /// What one step saw, for consistency checks and residual analysis.
@@ -344,13 +378,24 @@ where
             }
         }
 
-        // Steps 3-5 (Joseph form).
+        // Steps 3-5 (Joseph form). Sigma is factorised once; every solve
+        // with it below reuses the factor.
         let h_p = mul_sparse_left(&h, h_pattern, &p_prior);
         let sigma = sym_mul_t_sparse(&h_p, &h, h_pattern) + r;
-        let sigma_chol = cholesky(&sigma).ok_or(AekfError::NotPositiveDefinite {
+        let sigma_chol = ldl(&sigma).ok_or(AekfError::NotPositiveDefinite {
             which: "innovation covariance Sigma",
         })?;
-        let k = cholesky_solve(&sigma_chol, &h_p).transpose();
+        // The report is built here, where its parts are ready, so that it
+        // can be written where the caller receives it rather than copied
+        // there at the end.
+        let mut report = StepReport {
+            innovation,
+            innovation_covariance: sigma,
+            nis: 0.0,
+            dof: y.dof(),
+            forgetting: SVector::repeat(1.0),
+        };
+        let k = sigma_chol.solve(&h_p).transpose();
         let ikh = identity - mul_sparse_right(&k, &h, h_pattern);
         let dense_n = crate::linalg::dense::<N, N>();
         let dense_m = crate::linalg::dense::<N, M>();
@@ -370,29 +415,41 @@ where
 
         // Forgetting, per fault component (anti-windup), then steps 8-10 in the
         // equivalent form with the forgotten S_f = D^-1/2 S D^-1/2.
-        let sigma_inv_omega = cholesky_solve(&sigma_chol, &omega);
-        let info_gain = mul(&omega.transpose(), &sigma_inv_omega);
+        let sigma_inv_omega = sigma_chol.solve(&omega);
+        let info_gain = mul_tn(&omega, &sigma_inv_omega);
         let forgetting = forgetting_factors(
             lambda,
             &info_gain.diagonal(),
             &state.held_information,
             self.config.anti_windup_ratio,
         );
-        let scale: [f64; P] = std::array::from_fn(|i| 1.0 / forgetting[i].sqrt());
+        // S_f[i][j] = S[i][j] / sqrt(f_i f_j): a division on the diagonal,
+        // one square root per pair off it.
         let mut s_forgot = state.s;
         for i in 0..P {
             for j in 0..P {
-                s_forgot[(i, j)] *= scale[i] * scale[j];
+                s_forgot[(i, j)] /= if i == j {
+                    forgetting[i]
+                } else {
+                    (forgetting[i] * forgetting[j]).sqrt()
+                };
             }
         }
-        let omega_s = mul(&omega, &s_forgot);
-        let lambda_mat = sigma + mul_t(&omega_s, &omega);
-        let lambda_chol = cholesky(&lambda_mat).ok_or(AekfError::NotPositiveDefinite {
-            which: "fault gain matrix Lambda^-1",
+        // Steps 8-10 through the push-through identity, with the information
+        // G = Omega^T Sigma^-1 Omega already at hand:
+        //   Gamma = S_f Omega^T (Sigma + Omega S_f Omega^T)^-1
+        //         = S_f (I + G S_f)^-1 (Sigma^-1 Omega)^T,
+        //   S     = S_f - Gamma Omega S_f = S_f (I + G S_f)^-1,
+        // a P x P solve instead of factorising the M x M Lambda^-1. I + G S_f
+        // is invertible for any positive semi-definite S_f (the eigenvalues
+        // of G S_f are non-negative), so it fails only on a broken S.
+        let gain_matrix = SMatrix::<f64, P, P>::identity() + mul(&info_gain, &s_forgot);
+        let gain_inv = inverse_small(&gain_matrix).ok_or(AekfError::NotPositiveDefinite {
+            which: "fault gain matrix I + G S",
         })?;
-        let gamma = cholesky_solve(&lambda_chol, &omega_s).transpose();
-        let s_post = s_forgot - mul(&gamma, &omega_s);
-        let s_post = (s_post + s_post.transpose()) * 0.5;
+        let s_post_full = mul(&s_forgot, &gain_inv);
+        let gamma = mul_t(&s_post_full, &sigma_inv_omega);
+        let s_post = (s_post_full + s_post_full.transpose()) * 0.5;
 
         // Steps 11-13.
         let d_theta = mul(&gamma, &innovation);
@@ -404,7 +461,7 @@ where
             }
         }
 
-        let nis = innovation.dot(&cholesky_solve(&sigma_chol, &innovation));
+        let nis = sigma_chol.quadratic_form(&innovation);
         if !nis.is_finite() {
             return Err(AekfError::Diverged {
                 what: "innovation too large to represent",
@@ -415,14 +472,15 @@ where
         let recent_information = state.recent_information * lambda + info_gain.diagonal();
 
         // Optional noise adaptation, for use from the next step.
-        let mut q_density = state.process_noise_density;
-        let mut r_next = state.measurement_noise;
+        // (None: unchanged, and then neither copied nor written back.)
+        let mut q_density: Option<SMatrix<f64, N, N>> = None;
+        let mut r_next: Option<SMatrix<f64, M, M>> = None;
         if let Some(adapt) = self.config.noise_adaptation {
             let a = adapt.factor;
             if adapt.adapt_process_noise {
                 let ki = k * innovation;
                 let q_new = q_step * a + (ki * ki.transpose()) * (1.0 - a);
-                q_density = (q_new + q_new.transpose()) * (0.5 / dt_s);
+                q_density = Some((q_new + q_new.transpose()) * (0.5 / dt_s));
             }
             if let Some(form) = adapt.measurement_noise_form {
                 let (resid, spread) = match form {
@@ -440,46 +498,65 @@ where
                     MeasurementNoiseForm::AuthorsCode => (innovation, h * p_prior * h.transpose()),
                 };
                 let sample = resid * resid.transpose() + spread;
+                let mut r_new = state.measurement_noise;
                 // Only the available block learns; missing rows keep their value.
                 for i in 0..M {
                     for j in 0..M {
                         if y.available[i] && y.available[j] {
-                            r_next[(i, j)] = a * r_next[(i, j)] + (1.0 - a) * sample[(i, j)];
+                            r_new[(i, j)] = a * r_new[(i, j)] + (1.0 - a) * sample[(i, j)];
                         }
                     }
                 }
-                r_next = (r_next + r_next.transpose()) * 0.5;
-                if cholesky(&r_next).is_none() {
-                    r_next = state.measurement_noise;
+                r_new = (r_new + r_new.transpose()) * 0.5;
+                if cholesky(&r_new).is_none() {
+                    r_new = state.measurement_noise;
                 }
+                r_next = Some(r_new);
             }
         }
 
-        let next = AekfState {
-            x: x_post,
-            p: p_post,
-            upsilon,
-            s: s_post,
-            theta,
-            process_noise_density: q_density,
-            measurement_noise: r_next,
-            held_information,
-            recent_information,
-            steps: state.steps + 1,
-        };
-        if !next.is_sane() {
+        // The checks of `AekfState::is_sane` on the new values, before any is
+        // stored; then the fields are written in place (no second copy of
+        // the whole estimate).
+        let mut diagonals_ok = true;
+        for i in 0..N {
+            diagonals_ok &= p_post[(i, i)] > 0.0;
+        }
+        for i in 0..P {
+            diagonals_ok &= s_post[(i, i)] >= 0.0;
+        }
+        let all_finite = poison(&x_post)
+            + poison(&p_post)
+            + poison(&s_post)
+            + poison(&theta)
+            + poison(&upsilon)
+            + poison(&held_information)
+            + poison(&recent_information)
+            + poison(q_density.as_ref().unwrap_or(&state.process_noise_density))
+            + poison(r_next.as_ref().unwrap_or(&state.measurement_noise))
+            == 0.0;
+        if !(all_finite && diagonals_ok) {
             return Err(AekfError::Diverged {
                 what: "non-finite value or non-positive variance",
             });
         }
-        *state = next;
-        Ok(StepReport {
-            innovation,
-            innovation_covariance: sigma,
-            nis,
-            dof: y.dof(),
-            forgetting,
-        })
+        state.x = x_post;
+        state.p = p_post;
+        state.upsilon = upsilon;
+        state.s = s_post;
+        state.theta = theta;
+        if let Some(q) = q_density {
+            state.process_noise_density = q;
+        }
+        if let Some(r) = r_next {
+            state.measurement_noise = r;
+        }
+        state.held_information = held_information;
+        state.recent_information = recent_information;
+        state.steps += 1;
+        report.nis = nis;
+        report.forgetting = forgetting;
+        Ok(report)
     }
 }
 
@@ -512,13 +589,14 @@ pub fn forgetting_factors<const P: usize>(
         }
         let gain = info_gain[i].max(0.0);
         let held = held_information[i];
-        let ratio = if held > 0.0 {
-            gain / ((1.0 - lambda) * held)
+        // e / ratio_min, with one division.
+        let excitation = if held > 0.0 {
+            gain / ((1.0 - lambda) * held * ratio_min)
         } else if gain > 0.0 {
-            ratio_min
+            1.0
         } else {
             0.0
         };
-        1.0 - (1.0 - lambda) * (ratio / ratio_min).min(1.0)
+        1.0 - (1.0 - lambda) * excitation.min(1.0)
     })
 }

@@ -1,8 +1,17 @@
 //! `twind`: parses the command line, starts tracing, loads the settings and
-//! Zenoh's configuration, opens the session, and runs the daemon (or the
-//! demo) until SIGINT or SIGTERM; the Zenoh session is closed last.
+//! Zenoh's configuration, opens the session, starts the web page when asked
+//! (`--web`, `--web-listen`, `[web]` in the settings; on by default in
+//! `--demo` unless `--no-web`), and runs the daemon (or the demo) until
+//! SIGINT or SIGTERM (a demo at a terminal keeps its page up after the
+//! trials, until Ctrl-C); the web page stops with the daemon, and the Zenoh
+//! session is closed last.
 
+mod web;
+
+use std::io::IsTerminal;
+use std::net::SocketAddr;
 use std::path::PathBuf;
+use std::time::Duration;
 
 use anyhow::Context;
 use clap::Parser;
@@ -31,8 +40,41 @@ struct Cli {
     /// Demo: replay the trials over and over until stopped.
     #[arg(long, requires = "demo")]
     demo_loop: bool,
+    /// Serve the web page (live track, forecast, thruster health) on the
+    /// settings' `web.listen` address (default 127.0.0.1:8080).
+    #[arg(long)]
+    web: bool,
+    /// Serve the web page on this address (implies --web); port 0 picks a
+    /// free one. The page's URL is printed.
+    #[arg(long, value_name = "ADDR")]
+    web_listen: Option<SocketAddr>,
+    /// No web page, not even in --demo or with `web.enabled` in the settings.
+    #[arg(long, conflicts_with_all = ["web", "web_listen"])]
+    no_web: bool,
     #[command(flatten)]
     zenoh: ZenohArgs,
+}
+
+/// Events the daemon may be ahead of the web page's pump before the pump
+/// skips some (the daemon never waits for the page).
+const WEB_TAP_CAPACITY: usize = 16_384;
+
+/// Where the web page is served, if it is.
+fn web_listen(cli: &Cli, settings: &Settings) -> anyhow::Result<Option<SocketAddr>> {
+    let enabled =
+        !cli.no_web && (cli.web || cli.web_listen.is_some() || cli.demo || settings.web.enabled);
+    if !enabled {
+        return Ok(None);
+    }
+    match cli.web_listen {
+        Some(a) => Ok(Some(a)),
+        None => settings
+            .web
+            .listen
+            .parse()
+            .map(Some)
+            .with_context(|| format!("web.listen {:?}", settings.web.listen)),
+    }
 }
 
 fn settings(cli: &Cli) -> anyhow::Result<Settings> {
@@ -106,26 +148,81 @@ async fn main() -> anyhow::Result<()> {
         .map_err(|e| anyhow::anyhow!("cannot open the Zenoh session: {e}"))?;
     let token = CancellationToken::new();
     tokio::spawn(shutdown_signal(token.clone()));
+    let latest = twind::LatestStates::default();
+    let (tap, page) = match web_listen(&cli, &settings)? {
+        Some(listen) => {
+            let (tx, _) = tokio::sync::broadcast::channel(WEB_TAP_CAPACITY);
+            let sources = web::Sources {
+                tap: tx.clone(),
+                latest: latest.clone(),
+                inputs: Some(web::InputFeed {
+                    session: session.clone(),
+                    keys: settings.keys.clone(),
+                    own: settings.vessels.own.clone(),
+                    max_payload_bytes: settings.max_payload_bytes,
+                }),
+                info: web::WebInfo::new(&settings),
+            };
+            match web::start(listen, sources, token.clone()).await {
+                Ok(page) => {
+                    println!("twind web page: {}", page.url());
+                    (Some(tx), Some(page))
+                }
+                // The demo's page is a default, not a request: without it
+                // the demo still runs.
+                Err(e) if cli.demo && cli.web_listen.is_none() && !cli.web => {
+                    tracing::warn!(
+                        "{e:#}; the demo runs without its page (--web-listen ADDR picks another address)"
+                    );
+                    (None, None)
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        None => (None, None),
+    };
     let result = if cli.demo {
         let options = twind::demo::DemoOptions {
             rate: cli.demo_rate,
             looping: cli.demo_loop,
         };
-        twind::demo::run(
+        let r = twind::demo::run(
             settings,
             session.clone(),
             options,
-            None,
-            Default::default(),
+            tap,
+            latest,
             token.clone(),
         )
         .await
-        .map(|_| ())
+        .map(|_| ());
+        // Someone at a terminal may still be looking at the page: keep it
+        // up. A script (no terminal) gets the demo's exit as before.
+        if let Some(page) = &page
+            && !token.is_cancelled()
+            && std::io::stdout().is_terminal()
+        {
+            println!(
+                "twind demo: the trials are over; the page stays up at {} until Ctrl-C",
+                page.url()
+            );
+            token.cancelled().await;
+        }
+        r
     } else {
-        twind::run(settings, session.clone(), token.clone())
+        twind::run_with_tap(settings, session.clone(), token.clone(), tap, latest)
             .await
             .map(|_| ())
     };
+    if let Some(page) = page {
+        if page.skipped() > 0 {
+            tracing::info!(
+                skipped = page.skipped(),
+                "web page: events skipped for slow pages"
+            );
+        }
+        page.stopped(Duration::from_secs(2)).await;
+    }
     // The session closes last, after every vessel has said its last words.
     if let Err(e) = session.close().await {
         tracing::warn!("closing the Zenoh session: {e}");

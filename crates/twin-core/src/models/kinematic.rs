@@ -43,6 +43,9 @@ pub struct KinematicModel;
 impl Model<4, 4, 2> for KinematicModel {
     type Input = KinematicInput;
 
+    // Inlined into the filter's step (a different crate's generic code):
+    // the Jacobians' constant entries then fold into the products.
+    #[inline]
     fn transition(
         &self,
         x: &SVector<f64, 4>,
@@ -81,6 +84,7 @@ impl Model<4, 4, 2> for KinematicModel {
         }
     }
 
+    #[inline]
     fn observe(&self, x: &SVector<f64, 4>) -> Observation<4, 4> {
         Observation {
             predicted: *x,

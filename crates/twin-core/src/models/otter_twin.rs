@@ -35,13 +35,127 @@
 use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
 
 use crate::geodesy::wrap_pi;
-use crate::linalg::mul;
+use crate::linalg::{Pattern, mul_sparse_left};
 use crate::model::{Model, Observation, Transition};
 use crate::models::effects::{Kinematics, SensorEffects, gnss_measurement};
 use crate::otter::OtterParams;
 
 /// Longest integration sub-step, seconds.
 pub const MAX_SUBSTEP_S: f64 = 0.2;
+
+/// A pattern with `true` at the listed `(row, column)` entries.
+const fn pattern<const R: usize, const C: usize>(entries: &[(usize, usize)]) -> Pattern<R, C> {
+    let mut p = [[false; C]; R];
+    let mut k = 0;
+    while k < entries.len() {
+        p[entries[k].0][entries[k].1] = true;
+        k += 1;
+    }
+    p
+}
+
+/// The entries of the continuous Jacobian `A = d xdot / d x` (8 states) that
+/// may be non-zero: the kinematics (position from heading, velocities and
+/// current; heading from yaw rate) and the 3 x 3 block of the kinetics.
+const A_PATTERN: Pattern<8, 8> = {
+    use idx::*;
+    pattern(&[
+        (NORTH, PSI),
+        (NORTH, U),
+        (NORTH, V),
+        (NORTH, CURRENT_NORTH),
+        (EAST, PSI),
+        (EAST, U),
+        (EAST, V),
+        (EAST, CURRENT_EAST),
+        (PSI, R),
+        (U, U),
+        (U, V),
+        (U, R),
+        (V, U),
+        (V, V),
+        (V, R),
+        (R, U),
+        (R, V),
+        (R, R),
+    ])
+};
+
+/// The entries of a step's transition Jacobian `F` (8 states) that may be
+/// non-zero. Each sub-step's `I + h A + h^2 A^2 / 2` has this pattern, and
+/// products of such matrices keep it, so `F` (their product) does too.
+const F_PATTERN: Pattern<8, 8> = {
+    use idx::*;
+    pattern(&[
+        (NORTH, NORTH),
+        (NORTH, PSI),
+        (NORTH, U),
+        (NORTH, V),
+        (NORTH, R),
+        (NORTH, CURRENT_NORTH),
+        (EAST, EAST),
+        (EAST, PSI),
+        (EAST, U),
+        (EAST, V),
+        (EAST, R),
+        (EAST, CURRENT_EAST),
+        (PSI, PSI),
+        (PSI, U),
+        (PSI, V),
+        (PSI, R),
+        (U, U),
+        (U, V),
+        (U, R),
+        (V, U),
+        (V, V),
+        (V, R),
+        (R, U),
+        (R, V),
+        (R, R),
+        (CURRENT_NORTH, CURRENT_NORTH),
+        (CURRENT_EAST, CURRENT_EAST),
+    ])
+};
+
+/// The entries of the observation Jacobian `H` (8 states) that may be
+/// non-zero, with or without [`SensorEffects`]: an antenna off the body
+/// origin and a latency make the position and the velocity over ground
+/// depend on heading, velocities, yaw rate and current.
+const H_PATTERN: Pattern<5, 8> = {
+    use idx::*;
+    let velocity = [PSI, U, V, R, CURRENT_NORTH, CURRENT_EAST];
+    let mut p = [[false; 8]; 5];
+    p[meas::NORTH][NORTH] = true;
+    p[meas::EAST][EAST] = true;
+    p[meas::HEADING][PSI] = true;
+    let mut k = 0;
+    while k < velocity.len() {
+        p[meas::NORTH][velocity[k]] = true;
+        p[meas::EAST][velocity[k]] = true;
+        p[meas::SOG][velocity[k]] = true;
+        p[meas::COG][velocity[k]] = true;
+        k += 1;
+    }
+    p
+};
+
+/// The first `N` columns (and rows) of an 8-state pattern, for the 6-state
+/// twin.
+const fn leading<const R: usize, const C: usize, const RF: usize>(
+    full: &Pattern<RF, 8>,
+) -> Pattern<R, C> {
+    let mut p = [[false; C]; R];
+    let mut i = 0;
+    while i < R {
+        let mut j = 0;
+        while j < C {
+            p[i][j] = full[i][j];
+            j += 1;
+        }
+        i += 1;
+    }
+    p
+}
 
 /// The twin's input: the two shaft speeds over the step.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -316,11 +430,13 @@ impl<const N: usize> OtterTwin<N> {
             // exp(h A_mid) to second order: accurate to O(h^3).
             let k1 = self.xdot(&x, &thrust, theta);
             let mid = self.dynamics(&(x + k1 * (0.5 * h)), &thrust, theta, true);
+            // The products skip the known zeros of A and of F (the patterns).
             let ha = mid.a * h;
-            let f_sub = SMatrix::<f64, 8, 8>::identity() + ha + mul(&ha, &ha) * 0.5;
-            let b_sub = (mid.b + mul(&ha, &mid.b) * 0.5) * h;
-            psi = mul(&f_sub, &psi) + b_sub;
-            f = mul(&f_sub, &f);
+            let f_sub =
+                SMatrix::<f64, 8, 8>::identity() + ha + mul_sparse_left(&ha, &A_PATTERN, &ha) * 0.5;
+            let b_sub = (mid.b + mul_sparse_left(&ha, &A_PATTERN, &mid.b) * 0.5) * h;
+            psi = mul_sparse_left(&f_sub, &F_PATTERN, &psi) + b_sub;
+            f = mul_sparse_left(&f_sub, &F_PATTERN, &f);
             let k2 = mid.xdot;
             let k3 = self.xdot(&(x + k2 * (0.5 * h)), &thrust, theta);
             let k4 = self.xdot(&(x + k3 * h), &thrust, theta);
@@ -452,6 +568,10 @@ impl Model<8, 5, 2> for OtterTwin<8> {
     fn state_names(&self) -> [&'static str; 8] {
         STATE_NAMES
     }
+
+    const TRANSITION_PATTERN: Pattern<8, 8> = F_PATTERN;
+
+    const OBSERVATION_PATTERN: Pattern<5, 8> = H_PATTERN;
 }
 
 impl Model<6, 5, 2> for OtterTwin<6> {
@@ -502,6 +622,10 @@ impl Model<6, 5, 2> for OtterTwin<6> {
             STATE_NAMES[5],
         ]
     }
+
+    const TRANSITION_PATTERN: Pattern<6, 6> = leading::<6, 6, 8>(&F_PATTERN);
+
+    const OBSERVATION_PATTERN: Pattern<5, 6> = leading::<5, 6, 5>(&H_PATTERN);
 }
 
 #[cfg(test)]
@@ -667,6 +791,75 @@ mod tests {
             let num = (twin.observe8(&xp).predicted - o.predicted) / eps;
             for i in 0..5 {
                 assert!((num[i] - o.jacobian[(i, j)]).abs() < 1e-5, "H[{i},{j}]");
+            }
+        }
+    }
+
+    /// Every entry outside the declared patterns is exactly zero: of A, of
+    /// the step's F over short and long steps (several sub-steps) in a hard
+    /// turn, and of H with and without sensor effects; for both twins.
+    #[test]
+    fn jacobians_keep_to_their_patterns() {
+        let thrust = Vector2::new(60.0, 45.0);
+        let theta = SVector::<f64, 2>::new(0.2, 0.05);
+        let effects = SensorEffects {
+            antenna_m: [0.4, -0.2],
+            heading_offset_rad: 0.02,
+            sog_scale: 1.03,
+            gnss_latency_s: 0.15,
+        };
+        let twin = OtterTwin::<8>::default();
+        let twin6 = OtterTwin::<6>::default();
+        for (k, x) in [
+            state(),
+            SVector::<f64, 8>::from_column_slice(&[0.0, 0.0, -2.9, 2.5, -0.3, -0.4, -0.3, 0.25]),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let a = twin.dynamics(&x, &thrust, &theta, true).a;
+            for dt in [0.05, 0.2, 1.0, 3.0] {
+                let u = ShaftSpeeds {
+                    port_radps: 90.0,
+                    starboard_radps: -40.0,
+                };
+                let f = Model::<8, 5, 2>::transition(&twin, &x, &u, &theta, dt).jacobian;
+                let x6 = x.fixed_rows::<6>(0).into_owned();
+                let f6 = Model::<6, 5, 2>::transition(&twin6, &x6, &u, &theta, dt).jacobian;
+                for i in 0..8 {
+                    for j in 0..8 {
+                        if !A_PATTERN[i][j] {
+                            assert_eq!(a[(i, j)], 0.0, "A[{i},{j}] (state {k})");
+                        }
+                        if !F_PATTERN[i][j] {
+                            assert_eq!(f[(i, j)], 0.0, "F[{i},{j}] at dt {dt} (state {k})");
+                        }
+                        if i < 6
+                            && j < 6
+                            && !<OtterTwin<6> as Model<6, 5, 2>>::TRANSITION_PATTERN[i][j]
+                        {
+                            assert_eq!(f6[(i, j)], 0.0, "F6[{i},{j}] at dt {dt}");
+                        }
+                    }
+                }
+            }
+            for t in [twin, twin.with_effects(effects)] {
+                let h = Model::<8, 5, 2>::observe(&t, &x).jacobian;
+                let h6 = Model::<6, 5, 2>::observe(
+                    &twin6.with_effects(t.effects),
+                    &x.fixed_rows::<6>(0).into_owned(),
+                )
+                .jacobian;
+                for i in 0..5 {
+                    for j in 0..8 {
+                        if !H_PATTERN[i][j] {
+                            assert_eq!(h[(i, j)], 0.0, "H[{i},{j}] (state {k})");
+                        }
+                        if j < 6 && !<OtterTwin<6> as Model<6, 5, 2>>::OBSERVATION_PATTERN[i][j] {
+                            assert_eq!(h6[(i, j)], 0.0, "H6[{i},{j}]");
+                        }
+                    }
+                }
             }
         }
     }
