@@ -32,7 +32,7 @@ BLOCKS = {
     "diagnose-real": "cargo run --release -q -p twin-cli -- report diagnose-real",
     "bench-diagnose": "cargo bench -q -p twin-cli --bench diagnose 2>/dev/null | grep -E '^diagnose/|time:'",
     "bench-analyze": "cargo bench -q -p twin-cli --bench analyze 2>/dev/null | grep -E '^analyze/|time:'",
-    "bench-daemon": "cargo run --release -q -p twin-bench -- daemon --quick",
+    "bench-daemon": "cargo run --release -q -p twin-bench -- daemon",
 }
 
 
