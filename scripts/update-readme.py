@@ -32,7 +32,8 @@ BLOCKS = {
     "diagnose-real": "cargo run --release -q -p twin-cli -- report diagnose-real",
     "bench-diagnose": "cargo bench -q -p twin-cli --bench diagnose 2>/dev/null | grep -E '^diagnose/|time:'",
     "bench-analyze": "cargo bench -q -p twin-cli --bench analyze 2>/dev/null | grep -E '^analyze/|time:'",
-    "bench-daemon": "cargo run --release -q -p twin-bench -- daemon",
+    "bench-daemon": "cargo run --release -q -p twin-bench -- daemon 2>/dev/null",
+    "bench-daemon-no-liveliness": "cargo run --release -q -p twin-bench -- daemon --no-vessel-liveliness 2>/dev/null",
 }
 
 

@@ -9,12 +9,22 @@
 //! - [`numpy`]: the NumPy reference (`bench/numpy_aekf.py`): running it,
 //!   reading its result, comparing estimates step by step.
 //! - [`estimator`]: the `numpy` subcommand: both sides, the table.
-//! - [`machine`]: load average and cores.
+//! - [`workloads`]: what `core` and the criterion benches time: simulated
+//!   trials, the extended twin's recorded filter steps, the logs.
+//! - [`core`]: the `core` subcommand: estimator and offline path, one table
+//!   with the targets.
+//! - [`daemon`]: the `daemon` subcommand: twind under load against raw
+//!   Zenoh on loopback (throughput, latency, CPU, RSS, scaling, maximum
+//!   sustained rate), one table with the targets.
+//! - [`machine`]: load average, cores, processor.
 //!
 //! The binary (`src/main.rs`) only parses the command line and calls these.
 
+pub mod core;
+pub mod daemon;
 pub mod estimator;
 pub mod machine;
 pub mod numpy;
 pub mod rng;
 pub mod trial;
+pub mod workloads;

@@ -1,6 +1,6 @@
-//! What the machine was doing while a benchmark ran: the load average and the
-//! number of cores. The machine is shared, so every figure is printed beside
-//! these.
+//! What the machine was doing while a benchmark ran: the load average, the
+//! number of cores and the processor. The machine is shared, so every figure
+//! is printed beside these.
 
 /// The 1, 5 and 15 minute load averages, from `/proc/loadavg`, or `None`
 /// where that file does not exist (not Linux).
@@ -16,6 +16,19 @@ pub fn load_average_text() -> String {
         Some([a, b, c]) => format!("{a:.2} {b:.2} {c:.2}"),
         None => "unknown".into(),
     }
+}
+
+/// The processor's model name, from `/proc/cpuinfo`, or `"unknown"`.
+pub fn cpu_model() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|t| {
+            t.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split_once(':'))
+                .map(|(_, v)| v.trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown".into())
 }
 
 /// Cores this process may use.

@@ -3,12 +3,17 @@
 //!
 //! ```text
 //! cargo run --release -p twin-bench -- numpy     # the AEKF step against NumPy
+//! cargo run --release -p twin-bench -- core      # estimator and offline path, with targets
+//! cargo run --release -p twin-bench -- daemon    # twind under load against raw Zenoh
 //! ```
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
+use twin_bench::core::CoreOptions;
+use twin_bench::daemon::DaemonOptions;
+use twin_bench::daemon::load::{self, Ending, PointSpec};
 use twin_bench::estimator::{self, NumpyOptions};
 use twin_bench::numpy;
 use twin_bench::trial::{Adaptation, TrialSpec};
@@ -27,6 +32,178 @@ enum Bench {
     /// NumPy (bench/numpy_aekf.py): ns per step, the ratio, and the largest
     /// difference of the estimates. Exits non-zero if they disagree.
     Numpy(NumpyArgs),
+    /// The estimator and the offline path in one table with PRODUCT.md's
+    /// targets: the seed and extended AEKF steps, NumPy and the ratio, the
+    /// whole twin per fix, the forecast, a 120 s trial, parsing per format
+    /// (MB/s) and a 4-hour log analysed offline.
+    Core(CoreArgs),
+    /// twind under load against raw Zenoh, in-process on loopback: N
+    /// vessels x R Hz of GNSS fixes and shaft speeds; throughput, p50/p99/max
+    /// latency GNSS publish -> fault receive, CPU, RSS and memory per vessel;
+    /// 10 to 10,000 vessels; each path's maximum sustained rate and their
+    /// ratio. One table with PRODUCT.md's targets.
+    Daemon(DaemonArgs),
+    /// One point of `daemon`, run in a child process; prints one JSON line.
+    #[command(hide = true)]
+    DaemonPoint(DaemonPointArgs),
+}
+
+#[derive(Debug, Args)]
+struct DaemonArgs {
+    /// Two fleet sizes, 3 s windows: a smoke test, not a measurement.
+    #[arg(long)]
+    quick: bool,
+    /// Fleet sizes of the scaling table (comma-separated; default
+    /// 10,100,1000,10000, with --quick 10,1000).
+    #[arg(long, value_delimiter = ',')]
+    vessels: Option<Vec<usize>>,
+    /// Fixes per second per vessel in the scaling table.
+    #[arg(long, default_value_t = 10.0)]
+    rate_hz: f64,
+    /// Measurement window of each scaling point, s (default 10, with --quick 3).
+    #[arg(long)]
+    window_s: Option<f64>,
+    /// Least warm-up before each window, s (default 1.5, with --quick 1).
+    #[arg(long)]
+    warmup_s: Option<f64>,
+    /// Fleet of the flat-out runs.
+    #[arg(long, default_value_t = twin_bench::daemon::HEADLINE_VESSELS)]
+    saturation_vessels: usize,
+    /// Run the daemon with `publish.vessel_liveliness = false` (no token per
+    /// vessel under the prefix).
+    #[arg(long)]
+    no_vessel_liveliness: bool,
+}
+
+fn run_daemon(args: DaemonArgs) -> anyhow::Result<ExitCode> {
+    if cfg!(debug_assertions) {
+        eprintln!("warning: a debug build; the figures mean little (use --release)");
+    }
+    let mut opts = DaemonOptions::new(args.quick, std::env::current_exe()?);
+    if let Some(v) = args.vessels {
+        anyhow::ensure!(
+            !v.is_empty() && v.iter().all(|&n| (1..=99_999).contains(&n)),
+            "--vessels: 1 to 99,999 each"
+        );
+        opts.vessels = v;
+    }
+    anyhow::ensure!(
+        args.rate_hz > 0.0 && args.rate_hz.is_finite(),
+        "--rate-hz must be positive"
+    );
+    opts.rate_hz = args.rate_hz;
+    if let Some(w) = args.window_s {
+        anyhow::ensure!(w > 0.0 && w.is_finite(), "--window-s must be positive");
+        opts.window_s = w;
+    }
+    if let Some(w) = args.warmup_s {
+        anyhow::ensure!(w >= 0.0 && w.is_finite(), "--warmup-s must not be negative");
+        opts.warmup_s = w;
+    }
+    anyhow::ensure!(
+        (1..=99_999).contains(&args.saturation_vessels),
+        "--saturation-vessels: 1 to 99,999"
+    );
+    opts.saturation_vessels = args.saturation_vessels;
+    opts.vessel_liveliness = !args.no_vessel_liveliness;
+    let report = twin_bench::daemon::run(&opts)?;
+    print!("{}", report.table());
+    // A missed target is reported, not an error.
+    Ok(ExitCode::SUCCESS)
+}
+
+#[derive(Debug, Args)]
+struct DaemonPointArgs {
+    #[arg(long, value_enum)]
+    path: load::Path,
+    #[arg(long)]
+    vessels: usize,
+    #[arg(
+        long,
+        conflicts_with = "flat_out",
+        required_unless_present = "flat_out"
+    )]
+    rate_hz: Option<f64>,
+    #[arg(long)]
+    flat_out: bool,
+    #[arg(long)]
+    warmup_s: f64,
+    #[arg(long)]
+    window_s: f64,
+    #[arg(long)]
+    grace_s: f64,
+    #[arg(long)]
+    no_vessel_liveliness: bool,
+}
+
+fn run_daemon_point(args: DaemonPointArgs) -> anyhow::Result<ExitCode> {
+    let spec = PointSpec {
+        path: args.path,
+        vessels: args.vessels,
+        rate_hz: if args.flat_out { None } else { args.rate_hz },
+        warmup_s: args.warmup_s,
+        window_s: args.window_s,
+        grace_s: args.grace_s,
+        vessel_liveliness: !args.no_vessel_liveliness,
+    };
+    // A watchdog: a point that hangs must not hang the whole run.
+    let limit = spec.warmup_s * load::WARMUP_CAP + spec.window_s + spec.grace_s + 90.0;
+    std::thread::spawn(move || {
+        std::thread::sleep(std::time::Duration::from_secs_f64(limit));
+        eprintln!("error: the point did not finish within {limit:.0} s");
+        std::process::exit(3);
+    });
+    let result = load::measure(&spec, Ending::Abandon)?;
+    println!("{}", twin_bench::daemon::point_line(&result)?);
+    use std::io::Write as _;
+    std::io::stdout().flush()?;
+    // The daemon, its sessions and its runtime were left running (a
+    // saturated daemon would take long to drain): leave now.
+    std::process::exit(0);
+}
+
+#[derive(Debug, Args)]
+struct CoreArgs {
+    /// The Python interpreter for the NumPy reference.
+    #[arg(long, default_value = "python3")]
+    python: String,
+    /// Timed runs of the seed trial in Rust.
+    #[arg(long, default_value_t = 201)]
+    rust_repeats: usize,
+    /// Timed runs of the seed trial in NumPy.
+    #[arg(long, default_value_t = 7)]
+    numpy_repeats: usize,
+    /// Where to write the trial files and the synthetic 4-hour log (default:
+    /// a twin-bench-core folder in the system's temporary directory).
+    #[arg(long)]
+    work_dir: Option<PathBuf>,
+    /// Few repeats and a 10-minute long log instead of 4 hours: a smoke
+    /// test, not a measurement.
+    #[arg(long)]
+    quick: bool,
+}
+
+fn run_core(args: CoreArgs) -> anyhow::Result<ExitCode> {
+    if cfg!(debug_assertions) {
+        eprintln!("warning: a debug build; the figures mean little (use --release)");
+    }
+    let defaults = CoreOptions::default();
+    let report = twin_bench::core::run(&CoreOptions {
+        python: args.python,
+        rust_repeats: args.rust_repeats,
+        numpy_repeats: args.numpy_repeats,
+        work_dir: args.work_dir.unwrap_or(defaults.work_dir),
+        quick: args.quick,
+    })?;
+    print!("{}", report.table());
+    // A missed speed target is reported, not an error; a disagreement with
+    // NumPy is.
+    Ok(if report.numpy_agrees {
+        ExitCode::SUCCESS
+    } else {
+        eprintln!("error: NumPy and Rust disagree (see the note under the table)");
+        ExitCode::FAILURE
+    })
 }
 
 #[derive(Debug, Args)]
@@ -114,6 +291,9 @@ fn run_numpy(args: NumpyArgs) -> anyhow::Result<ExitCode> {
 fn main() -> ExitCode {
     let result = match Cli::parse().command {
         Bench::Numpy(args) => run_numpy(args),
+        Bench::Core(args) => run_core(args),
+        Bench::Daemon(args) => run_daemon(args),
+        Bench::DaemonPoint(args) => run_daemon_point(args),
     };
     // Printed here, once, without the backtrace anyhow would add under
     // RUST_BACKTRACE: these are setup errors, not bugs.

@@ -97,6 +97,7 @@ struct RawPublish {
     prediction_horizon_s: Option<f64>,
     prediction_step_s: Option<f64>,
     stats_interval_s: Option<f64>,
+    vessel_liveliness: Option<bool>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -156,6 +157,13 @@ pub struct PublishSettings {
     pub prediction_step_s: f64,
     /// Statistics are published this often (wall clock), s.
     pub stats_interval_s: f64,
+    /// Whether each vessel's twin holds the liveliness token
+    /// `{prefix}/{vessel}/twin/alive` (the contract; default true). With
+    /// Zenoh 1.10 every token under the prefix slows the routing of every
+    /// message under it, so a daemon for a large fleet may turn them off
+    /// (`twin-bench daemon` measures both); `twin/state` and its `stale`
+    /// flag still say whether a twin runs.
+    pub vessel_liveliness: bool,
 }
 
 /// Where calibrations are kept.
@@ -323,6 +331,7 @@ impl Settings {
                 "publish.stats_interval_s",
                 raw.publish.stats_interval_s.unwrap_or(5.0),
             )?,
+            vessel_liveliness: raw.publish.vessel_liveliness.unwrap_or(true),
         };
         if publish.prediction_horizon_s / publish.prediction_step_s > 3600.0 {
             return Err(SettingsError::Invalid {
@@ -457,7 +466,12 @@ mod tests {
         assert_eq!(s.vessels.own, "*");
         assert!(!s.web.enabled);
         let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../../config/twind.toml");
-        Settings::from_file(Path::new(shipped)).unwrap();
+        let file = Settings::from_file(Path::new(shipped)).unwrap();
+        // The contract's per-vessel liveliness token is on unless asked off.
+        assert!(s.publish.vessel_liveliness);
+        assert!(file.publish.vessel_liveliness);
+        let off = Settings::from_toml("[publish]\nvessel_liveliness = false\n").unwrap();
+        assert!(!off.publish.vessel_liveliness);
     }
 
     #[test]

@@ -42,7 +42,7 @@ use twin_wire::outputs::{
 use twin_wire::read::{NmeaDecoder, ReadOptions};
 use twin_wire::{Topic, VesselId};
 use zenoh::Session;
-use zenoh::pubsub::Publisher;
+use zenoh::key_expr::KeyExpr;
 use zenoh::qos::CongestionControl;
 
 use crate::persist;
@@ -69,20 +69,23 @@ pub enum VesselEvent {
     },
 }
 
+/// The vessel's output keys. They are not declared as Zenoh publishers:
+/// every declaration under `{prefix}/{vessel}/...` enters every connected
+/// session's resource tree, and with Zenoh 1.10 each message's routing then
+/// scans them, so six declared publishers per vessel made the whole fleet
+/// slower as it grew (`twin-bench daemon` measured it). A put on a key
+/// expression (validated once, here) costs the same without them.
 struct Publishers {
-    state: Publisher<'static>,
-    fault: Publisher<'static>,
-    prediction: Publisher<'static>,
-    alarm: Publisher<'static>,
-    stats: Publisher<'static>,
-    finding: Publisher<'static>,
+    state: KeyExpr<'static>,
+    fault: KeyExpr<'static>,
+    prediction: KeyExpr<'static>,
+    alarm: KeyExpr<'static>,
+    stats: KeyExpr<'static>,
+    finding: KeyExpr<'static>,
 }
 
-async fn publisher(session: &Session, key: String) -> zenoh::Result<Publisher<'static>> {
-    session
-        .declare_publisher(key)
-        .congestion_control(CongestionControl::Block)
-        .await
+fn publisher(key: String) -> zenoh::Result<KeyExpr<'static>> {
+    KeyExpr::try_from(key)
 }
 
 /// A vessel's task.
@@ -200,21 +203,26 @@ impl VesselTask {
     /// everything queued has been handled) or the vessel falls silent.
     pub async fn run(mut self, mut rx: mpsc::Receiver<VesselEvent>) -> Counters {
         let keys = self.settings.keys.clone();
-        let publishers = match self.declare(&keys).await {
+        let publishers = match self.declare(&keys) {
             Ok(p) => p,
             Err(e) => {
-                tracing::error!(vessel = self.id.as_str(), "cannot declare publishers: {e}");
+                tracing::error!(vessel = self.id.as_str(), "bad output key: {e}");
                 return self.counters;
             }
         };
-        let token = self
-            .session
-            .liveliness()
-            .declare_token(keys.twin_alive(&self.id))
-            .await;
-        if let Err(e) = &token {
-            tracing::warn!(vessel = self.id.as_str(), "no liveliness token: {e}");
-        }
+        let token = if self.settings.publish.vessel_liveliness {
+            let token = self
+                .session
+                .liveliness()
+                .declare_token(keys.twin_alive(&self.id))
+                .await;
+            if let Err(e) = &token {
+                tracing::warn!(vessel = self.id.as_str(), "no liveliness token: {e}");
+            }
+            token.ok()
+        } else {
+            None
+        };
         let tick = Duration::from_millis(250);
         let mut ticker = tokio::time::interval(tick);
         ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
@@ -267,15 +275,24 @@ impl VesselTask {
         self.counters
     }
 
-    async fn declare(&self, keys: &twin_wire::KeySpace) -> zenoh::Result<Publishers> {
+    fn declare(&self, keys: &twin_wire::KeySpace) -> zenoh::Result<Publishers> {
         Ok(Publishers {
-            state: publisher(&self.session, keys.twin_state(&self.id)).await?,
-            fault: publisher(&self.session, keys.twin_fault(&self.id)).await?,
-            prediction: publisher(&self.session, keys.twin_prediction(&self.id)).await?,
-            alarm: publisher(&self.session, keys.twin_alarm(&self.id)).await?,
-            stats: publisher(&self.session, keys.twin_stats(&self.id)).await?,
-            finding: publisher(&self.session, keys.key(&self.id, Topic::TwinFinding)).await?,
+            state: publisher(keys.twin_state(&self.id))?,
+            fault: publisher(keys.twin_fault(&self.id))?,
+            prediction: publisher(keys.twin_prediction(&self.id))?,
+            alarm: publisher(keys.twin_alarm(&self.id))?,
+            stats: publisher(keys.twin_stats(&self.id))?,
+            finding: publisher(keys.key(&self.id, Topic::TwinFinding))?,
         })
+    }
+
+    /// Puts `bytes` on `key`, blocking when Zenoh's queues are full (nothing
+    /// the twin computed is dropped on the way out).
+    async fn put(&self, key: &KeyExpr<'static>, bytes: Vec<u8>) -> zenoh::Result<()> {
+        self.session
+            .put(key, bytes)
+            .congestion_control(CongestionControl::Block)
+            .await
     }
 
     fn save(&mut self) {
@@ -527,7 +544,7 @@ impl VesselTask {
             map.insert(self.id.as_str().to_string(), bytes.clone());
         }
         self.tap_out(Topic::TwinState, &bytes);
-        if let Err(e) = p.state.put(bytes).await {
+        if let Err(e) = self.put(&p.state, bytes).await {
             tracing::warn!(vessel = self.id.as_str(), "state not published: {e}");
         }
     }
@@ -545,17 +562,12 @@ impl VesselTask {
         }
     }
 
-    async fn put_json<T: serde::Serialize>(
-        &self,
-        topic: Topic,
-        publisher: &Publisher<'static>,
-        value: &T,
-    ) {
+    async fn put_json<T: serde::Serialize>(&self, topic: Topic, key: &KeyExpr<'static>, value: &T) {
         match serde_json::to_vec(value) {
             Ok(bytes) => {
                 self.tap_out(topic, &bytes);
-                if let Err(e) = publisher.put(bytes).await {
-                    tracing::warn!(key = %publisher.key_expr(), "not published: {e}");
+                if let Err(e) = self.put(key, bytes).await {
+                    tracing::warn!(key = %key, "not published: {e}");
                 }
             }
             Err(e) => tracing::error!("cannot encode a payload: {e}"),

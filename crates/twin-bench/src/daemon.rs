@@ -1,0 +1,949 @@
+//! The `daemon` subcommand: the live daemon under load, side by side with
+//! raw Zenoh pub/sub, in one run, as PRODUCT.md's "Speed" section asks
+//! ("1,000 vessels at 10 Hz each through Zenoh on loopback with p99
+//! GNSS-in to fault-out latency under 5 ms; its maximum sustained rate at
+//! least a quarter of raw Zenoh pub/sub on the same payloads").
+//!
+//! # What is measured
+//! A load generator publishes, for `N` vessels at `R` Hz each, a GNSS fix on
+//! `asv/<id>/gnss` and the shaft speeds on `asv/<id>/actuators` (the
+//! contract's JSON, encoded by `twin_wire::messages` as `twin-replay` does;
+//! the fleet follows the simulated Otter's steady turn at 1.5 m/s, each
+//! vessel on its own circle and phase, see [`motion`]), spread evenly over
+//! each period. twind runs in the same process (`twind::run`, its own tokio
+//! runtime with a worker per core, default settings but the live diagnose
+//! off) on its own Zenoh session; a third session subscribes to
+//! `asv/*/twin/fault`. Per point:
+//! - throughput: fixes sent per second, faults received per second, and
+//!   fixes whose fault never came back within a grace period ("lost");
+//! - latency from the instant the generator stamped a fix to the instant
+//!   the subscriber received the fault that fix produced (the fault echoes
+//!   the fix's time, which is the stamp): p50, p99, max over every fix of
+//!   the window (see [`load`] for the details);
+//! - CPU time of the process over the window (`/proc/self/stat`), as % of
+//!   one core, and split by thread (daemon runtime, generator, Zenoh's
+//!   runtimes);
+//! - RSS before the first message and at the window's end; memory per
+//!   vessel is their difference over `N`.
+//!
+//! The same generator then publishes the same payloads to a subscriber with
+//! no daemon in between (raw Zenoh: one hop, where the daemon path has two
+//! and the daemon's work between them).
+//!
+//! # How
+//! Every point runs in a fresh child process (this binary, hidden
+//! subcommand `daemon-point`, one JSON line back), so that RSS and CPU
+//! belong to that point alone and a saturated daemon is not left draining
+//! into the next one. A point warms up (at least `--warmup-s`, and until
+//! every vessel has been heard from), measures one window, waits the grace
+//! period, and exits. Three sets of runs:
+//! 1. scaling: 10, 100, 1,000, 10,000 vessels at 10 Hz, daemon and raw;
+//! 2. the maximum sustained rate of each path at 10 Hz per vessel: a run
+//!    is sustained when at least 95 % of the fixes sent in its window came
+//!    back within the grace period and p99 latency stayed under 100 ms;
+//!    between the largest sustained fleet of the scaling runs and the
+//!    smallest that was not, the fleet is bisected (geometric mean, a few
+//!    steps). The largest delivered rate of a sustained run is the path's
+//!    maximum sustained rate; the daemon's over raw Zenoh's is the ratio
+//!    PRODUCT.md sets at >= 0.25;
+//! 3. capacity: each path flat out (1,000 vessels, no pacing, the
+//!    publishers' back-pressure setting the pace), the received rate.
+//!
+//! Figures are single measurements of one window each in one run (the
+//! latency percentiles are over every fix of the window), on a shared
+//! machine whose load is printed beside them. Nothing here is asserted in a
+//! test: the test (`tests/daemon_load.rs`) checks the plumbing only.
+
+pub mod histogram;
+pub mod load;
+pub mod motion;
+pub mod procstat;
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::time::Instant;
+
+use anyhow::Context;
+
+use crate::core::thousands;
+use crate::machine;
+use load::{Path, PointResult, PointSpec};
+
+/// PRODUCT.md: p99 GNSS-in to fault-out at 1,000 vessels x 10 Hz, ms.
+pub const TARGET_P99_MS: f64 = 5.0;
+/// PRODUCT.md: the daemon's maximum sustained rate over raw Zenoh's.
+pub const TARGET_RATIO: f64 = 0.25;
+/// The headline fleet.
+pub const HEADLINE_VESSELS: usize = 1000;
+/// A run is sustained when at least this fraction of the plan is sent and
+/// of what was sent delivered...
+pub const SUSTAINED_DELIVERED: f64 = 0.95;
+/// ... and p99 latency is under this, ms.
+pub const SUSTAINED_P99_MS: f64 = 100.0;
+
+/// How to run `daemon`.
+#[derive(Debug, Clone)]
+pub struct DaemonOptions {
+    /// Fleet sizes of the scaling table.
+    pub vessels: Vec<usize>,
+    /// Fixes per second per vessel in the scaling table.
+    pub rate_hz: f64,
+    /// Measurement window of the scaling runs, s.
+    pub window_s: f64,
+    /// Least warm-up, s.
+    pub warmup_s: f64,
+    /// Grace period after a window, s.
+    pub grace_s: f64,
+    /// Bisection steps of the sustained-rate search, per path.
+    pub ramp_steps: usize,
+    /// Measurement window of the sustained-rate search, s.
+    pub ramp_window_s: f64,
+    /// Fleet of the flat-out runs.
+    pub saturation_vessels: usize,
+    /// Measurement window of the flat-out runs, s.
+    pub saturation_window_s: f64,
+    /// Fewer sizes and shorter windows: a smoke test, not a measurement.
+    pub quick: bool,
+    /// The binary that runs one point (`daemon-point`): this one.
+    pub exe: PathBuf,
+    /// The daemon's `publish.vessel_liveliness` (default true, the contract).
+    pub vessel_liveliness: bool,
+}
+
+impl DaemonOptions {
+    /// The full run, or with `quick` the short one.
+    pub fn new(quick: bool, exe: PathBuf) -> Self {
+        if quick {
+            Self {
+                vessels: vec![10, 1000],
+                rate_hz: 10.0,
+                window_s: 3.0,
+                warmup_s: 1.0,
+                grace_s: 1.0,
+                ramp_steps: 1,
+                ramp_window_s: 2.0,
+                saturation_vessels: HEADLINE_VESSELS,
+                saturation_window_s: 2.0,
+                quick,
+                exe,
+                vessel_liveliness: true,
+            }
+        } else {
+            Self {
+                vessels: vec![10, 100, 1000, 10_000],
+                rate_hz: 10.0,
+                window_s: 10.0,
+                warmup_s: 1.5,
+                grace_s: 1.0,
+                ramp_steps: 2,
+                ramp_window_s: 4.0,
+                saturation_vessels: HEADLINE_VESSELS,
+                saturation_window_s: 3.0,
+                quick,
+                exe,
+                vessel_liveliness: true,
+            }
+        }
+    }
+}
+
+/// What `daemon` measured.
+#[derive(Debug, Clone)]
+pub struct DaemonReport {
+    /// The options it ran with.
+    pub options: DaemonOptions,
+    /// Scaling runs, daemon and raw, in run order.
+    pub scaling: Vec<PointResult>,
+    /// The sustained-rate search's runs (bisecting the fleet), in run order.
+    pub ramp: Vec<PointResult>,
+    /// Flat-out runs, daemon then raw.
+    pub capacity: Vec<PointResult>,
+    /// Load average before.
+    pub load_before: String,
+    /// Load average after.
+    pub load_after: String,
+    /// Wall time of the whole run, s.
+    pub elapsed_s: f64,
+}
+
+/// Whether a paced run counts as sustained: the plan was sent, what was
+/// sent came back, in time.
+pub fn sustained(r: &PointResult) -> bool {
+    r.spec.rate_hz.is_some()
+        && r.fixes_sent > 0
+        && r.offered_fraction() >= SUSTAINED_DELIVERED
+        && r.delivered_fraction() >= SUSTAINED_DELIVERED
+        && r.latency
+            .p99_ns
+            .is_some_and(|p| p as f64 / 1e6 <= SUSTAINED_P99_MS)
+}
+
+/// Whether a paced run failed only because the generator could not send
+/// its plan, with the generator's thread near a full core: what was sent
+/// came back in time.
+pub fn limited_by_generator(r: &PointResult) -> bool {
+    !sustained(r)
+        && r.offered_fraction() < SUSTAINED_DELIVERED
+        && r.delivered_fraction() >= SUSTAINED_DELIVERED
+        && r.latency
+            .p99_ns
+            .is_some_and(|p| p as f64 / 1e6 <= SUSTAINED_P99_MS)
+        && r.generator_cpu_pct().is_some_and(|c| c >= 80.0)
+}
+
+/// Runs one point in a child process (`exe daemon-point ...`) and reads
+/// its JSON line.
+pub fn run_point_in_child(exe: &std::path::Path, spec: &PointSpec) -> anyhow::Result<PointResult> {
+    let mut cmd = Command::new(exe);
+    cmd.arg("daemon-point")
+        .arg("--path")
+        .arg(match spec.path {
+            Path::Daemon => "daemon",
+            Path::Raw => "raw",
+        })
+        .arg("--vessels")
+        .arg(spec.vessels.to_string())
+        .arg("--warmup-s")
+        .arg(spec.warmup_s.to_string())
+        .arg("--window-s")
+        .arg(spec.window_s.to_string())
+        .arg("--grace-s")
+        .arg(spec.grace_s.to_string());
+    if !spec.vessel_liveliness {
+        cmd.arg("--no-vessel-liveliness");
+    }
+    match spec.rate_hz {
+        Some(r) => cmd.arg("--rate-hz").arg(r.to_string()),
+        None => cmd.arg("--flat-out"),
+    };
+    let out = cmd
+        .stdin(Stdio::null())
+        .stderr(Stdio::inherit())
+        .output()
+        .with_context(|| format!("running {}", exe.display()))?;
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    anyhow::ensure!(
+        out.status.success(),
+        "the point {spec:?} failed ({}): {stdout}",
+        out.status
+    );
+    let line = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix(POINT_PREFIX))
+        .ok_or_else(|| anyhow::anyhow!("the point {spec:?} printed no result: {stdout}"))?;
+    serde_json::from_str(line).context("reading a point's result")
+}
+
+/// The prefix of the result line a `daemon-point` child prints.
+pub const POINT_PREFIX: &str = "twin-bench-point ";
+
+/// The result line of a point, as `daemon-point` prints it.
+pub fn point_line(r: &PointResult) -> anyhow::Result<String> {
+    Ok(format!("{POINT_PREFIX}{}", serde_json::to_string(r)?))
+}
+
+fn progress(start: Instant, what: &str) {
+    eprintln!("[{:6.1} s] {what}", start.elapsed().as_secs_f64());
+}
+
+fn brief(r: &PointResult) -> String {
+    format!(
+        "{} fixes/s offered, {} /s received, {} lost, p99 {}",
+        thousands(r.offered_fixes_per_s.round() as u64),
+        thousands(r.received_per_s.round() as u64),
+        thousands(r.lost()),
+        ms_text(r.latency.p99_ns),
+    )
+}
+
+/// Runs every point with `point` (in child processes in the binary; the
+/// caller chooses) and collects the report.
+pub fn run_with(
+    opts: &DaemonOptions,
+    mut point: impl FnMut(&PointSpec) -> anyhow::Result<PointResult>,
+) -> anyhow::Result<DaemonReport> {
+    let start = Instant::now();
+    let load_before = machine::load_average_text();
+    let mut scaling = Vec::new();
+    for &n in &opts.vessels {
+        for path in [Path::Daemon, Path::Raw] {
+            let spec = PointSpec {
+                path,
+                vessels: n,
+                rate_hz: Some(opts.rate_hz),
+                warmup_s: opts.warmup_s,
+                window_s: opts.window_s,
+                grace_s: opts.grace_s,
+                vessel_liveliness: opts.vessel_liveliness,
+            };
+            let r = point(&spec)?;
+            progress(
+                start,
+                &format!("{path:?}, {n} vessels x {} Hz: {}", opts.rate_hz, brief(&r)),
+            );
+            scaling.push(r);
+        }
+    }
+    // The sustained-rate search: bisect the fleet between the largest
+    // sustained scaling run and the smallest one that was not.
+    let mut ramp: Vec<PointResult> = Vec::new();
+    for path in [Path::Daemon, Path::Raw] {
+        for _ in 0..opts.ramp_steps {
+            let tried = scaling.iter().chain(&ramp).filter(|r| r.spec.path == path);
+            let (mut lo, mut hi) = (None::<usize>, None::<usize>);
+            for r in tried {
+                let n = r.spec.vessels;
+                if sustained(r) {
+                    lo = Some(lo.map_or(n, |l| l.max(n)));
+                } else {
+                    hi = Some(hi.map_or(n, |h| h.min(n)));
+                }
+            }
+            let n = match (lo, hi) {
+                (Some(l), Some(h)) if l < h => ((l as f64) * (h as f64)).sqrt().round() as usize,
+                (None, Some(h)) => ((h as f64).sqrt().round() as usize).max(1),
+                // Every fleet tried was sustained: try twice the largest.
+                (Some(l), None) => (2 * l).min(99_999),
+                _ => break,
+            };
+            if scaling
+                .iter()
+                .chain(&ramp)
+                .any(|r| r.spec.path == path && r.spec.vessels == n)
+            {
+                break;
+            }
+            let r = point(&PointSpec {
+                path,
+                vessels: n,
+                rate_hz: Some(opts.rate_hz),
+                warmup_s: opts.warmup_s,
+                window_s: opts.ramp_window_s,
+                grace_s: opts.grace_s,
+                vessel_liveliness: opts.vessel_liveliness,
+            })?;
+            progress(
+                start,
+                &format!(
+                    "{path:?}, {n} vessels x {} Hz (sustained-rate search): {}; {}",
+                    opts.rate_hz,
+                    brief(&r),
+                    if sustained(&r) {
+                        "sustained"
+                    } else {
+                        "not sustained"
+                    }
+                ),
+            );
+            ramp.push(r);
+        }
+    }
+    let mut capacity = Vec::new();
+    for path in [Path::Daemon, Path::Raw] {
+        let n = opts.saturation_vessels;
+        let flat = point(&PointSpec {
+            path,
+            vessels: n,
+            rate_hz: None,
+            warmup_s: opts.warmup_s,
+            window_s: opts.saturation_window_s,
+            grace_s: opts.grace_s,
+            vessel_liveliness: opts.vessel_liveliness,
+        })?;
+        progress(
+            start,
+            &format!("{path:?}, {n} vessels flat out: {}", brief(&flat)),
+        );
+        capacity.push(flat);
+    }
+    Ok(DaemonReport {
+        options: opts.clone(),
+        scaling,
+        ramp,
+        capacity,
+        load_before,
+        load_after: machine::load_average_text(),
+        elapsed_s: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Runs every point in a child process of `opts.exe`.
+pub fn run(opts: &DaemonOptions) -> anyhow::Result<DaemonReport> {
+    let exe = opts.exe.clone();
+    run_with(opts, |spec| run_point_in_child(&exe, spec))
+}
+
+/// Milliseconds with a readable precision, from nanoseconds.
+pub fn ms_text(ns: Option<u64>) -> String {
+    match ns {
+        None => "-".into(),
+        Some(ns) => {
+            let ms = ns as f64 / 1e6;
+            if ms < 1.0 {
+                format!("{ms:.3} ms")
+            } else if ms < 100.0 {
+                format!("{ms:.2} ms")
+            } else {
+                format!("{ms:.0} ms")
+            }
+        }
+    }
+}
+
+fn mb_text(kib: Option<u64>) -> String {
+    kib.map_or("-".into(), |k| format!("{:.1} MB", k as f64 * 1024.0 / 1e6))
+}
+
+fn per_vessel_text(r: &PointResult) -> String {
+    r.kib_per_vessel()
+        .map_or("-".into(), |k| format!("{:.1} KB", k * 1024.0 / 1e3))
+}
+
+fn cpu_text(r: &PointResult) -> String {
+    r.cpu_pct_of_core
+        .map_or("-".into(), |c| format!("{c:.0} %"))
+}
+
+fn rate_text(per_s: f64) -> String {
+    thousands(per_s.round().max(0.0) as u64)
+}
+
+/// A p99 that is only a lower bound when much was not delivered.
+fn p99_text(r: &PointResult) -> String {
+    let t = ms_text(r.latency.p99_ns);
+    if r.delivered_fraction() < 0.99 && r.latency.p99_ns.is_some() {
+        format!(">= {t}")
+    } else {
+        t
+    }
+}
+
+fn fleet_text(r: &PointResult) -> String {
+    match r.spec.rate_hz {
+        Some(hz) => {
+            format!("{} x {hz:.4} Hz", thousands(r.spec.vessels as u64)).replace(".0000 Hz", " Hz")
+        }
+        None => format!("{} flat out", thousands(r.spec.vessels as u64)),
+    }
+}
+
+fn path_text(p: Path) -> &'static str {
+    match p {
+        Path::Daemon => "daemon",
+        Path::Raw => "raw Zenoh",
+    }
+}
+
+impl DaemonReport {
+    /// The scaling run of `path` at `vessels`, if it ran.
+    pub fn scaling_point(&self, path: Path, vessels: usize) -> Option<&PointResult> {
+        self.scaling
+            .iter()
+            .find(|r| r.spec.path == path && r.spec.vessels == vessels)
+    }
+
+    /// The sustained run with the largest delivered rate, of `path`.
+    pub fn max_sustained(&self, path: Path) -> Option<&PointResult> {
+        self.paced(path)
+            .filter(|r| sustained(r))
+            .max_by(|a, b| a.delivered_per_s().total_cmp(&b.delivered_per_s()))
+    }
+
+    fn paced(&self, path: Path) -> impl Iterator<Item = &PointResult> {
+        self.scaling
+            .iter()
+            .chain(&self.ramp)
+            .filter(move |r| r.spec.path == path && r.spec.rate_hz.is_some())
+    }
+
+    /// True when `path`'s maximum sustained rate is only a lower bound:
+    /// the largest fleet tried was sustained, or the runs above it failed
+    /// only because the generator could not send the plan.
+    pub fn sustained_is_lower_bound(&self, path: Path) -> bool {
+        let best = self.max_sustained(path).map_or(0, |r| r.spec.vessels);
+        let mut above = self
+            .paced(path)
+            .filter(|r| r.spec.vessels > best)
+            .peekable();
+        above.peek().is_none() || above.all(limited_by_generator)
+    }
+
+    /// The daemon's maximum sustained rate over raw Zenoh's.
+    pub fn ratio(&self) -> Option<f64> {
+        let d = self.max_sustained(Path::Daemon)?.delivered_per_s();
+        let r = self.max_sustained(Path::Raw)?.delivered_per_s();
+        (r > 0.0).then(|| d / r)
+    }
+
+    /// True if every judged target is met.
+    pub fn all_met(&self) -> bool {
+        self.headline_p99_met() == Some(true) && self.ratio_judged().1 == "met"
+    }
+
+    /// The ratio as printed (with `<=` or `>=` when one side is only a
+    /// bound) and its verdict: `met`, `missed`, or `unknown` when a bound
+    /// cannot decide.
+    pub fn ratio_judged(&self) -> (String, &'static str) {
+        let Some(ratio) = self.ratio() else {
+            return ("not measured".into(), "missed");
+        };
+        let d_low = self.sustained_is_lower_bound(Path::Daemon);
+        let r_low = self.sustained_is_lower_bound(Path::Raw);
+        let met = ratio >= TARGET_RATIO;
+        match (d_low, r_low) {
+            (false, false) => (format!("{ratio:.3}"), if met { "met" } else { "missed" }),
+            // Raw Zenoh could do more: the true ratio is smaller.
+            (false, true) => (
+                format!("<= {ratio:.3}"),
+                if met { "unknown" } else { "missed" },
+            ),
+            // The daemon could do more: the true ratio is larger.
+            (true, false) => (
+                format!(">= {ratio:.3}"),
+                if met { "met" } else { "unknown" },
+            ),
+            (true, true) => (format!("~ {ratio:.3} (both lower bounds)"), "unknown"),
+        }
+    }
+
+    fn headline_p99_met(&self) -> Option<bool> {
+        let r = self.scaling_point(Path::Daemon, HEADLINE_VESSELS)?;
+        Some(
+            r.delivered_fraction() >= 0.99
+                && r.latency
+                    .p99_ns
+                    .is_some_and(|p| (p as f64 / 1e6) < TARGET_P99_MS),
+        )
+    }
+
+    /// The tables with their context, as Markdown.
+    pub fn table(&self) -> String {
+        let mut s = String::new();
+        let o = &self.options;
+        let _ = writeln!(
+            s,
+            "The daemon under load against raw Zenoh, one run of `twin-bench daemon{}` \
+             (release build; twind and every Zenoh session in one process, TCP on loopback).",
+            if o.quick { " --quick" } else { "" }
+        );
+        let _ = writeln!(
+            s,
+            "machine: {} cores ({}), load average (1/5/15 min) {} before, {} after; \
+             each figure is one measurement window in this run ({} s scaling), \
+             latency percentiles over every fix of the window; whole run {:.0} s.",
+            machine::cores(),
+            machine::cpu_model(),
+            self.load_before,
+            self.load_after,
+            o.window_s,
+            self.elapsed_s
+        );
+        let _ = writeln!(s);
+
+        // 1. The headline, with the targets.
+        let _ = writeln!(s, "| measurement | figure | target | verdict |");
+        let _ = writeln!(s, "|---|---:|---|---|");
+        let verdict = |ok: bool| if ok { "met" } else { "missed" };
+        let hz = o.rate_hz;
+        match self.scaling_point(Path::Daemon, HEADLINE_VESSELS) {
+            Some(d) => {
+                let what = format!(
+                    "daemon, {} vessels x {hz} Hz ({} fixes/s + as many shaft-speed messages)",
+                    thousands(HEADLINE_VESSELS as u64),
+                    rate_text(HEADLINE_VESSELS as f64 * hz)
+                );
+                let ok = self.headline_p99_met().unwrap_or(false);
+                let _ = writeln!(
+                    s,
+                    "| {what}: p99 GNSS publish -> fault receive | {} | < {TARGET_P99_MS} ms{} | {} |",
+                    p99_text(d),
+                    if hz == 10.0 { "" } else { " (set for 10 Hz)" },
+                    verdict(ok)
+                );
+                let _ = writeln!(
+                    s,
+                    "| same: p50 / max latency | {} / {} | | |",
+                    ms_text(d.latency.p50_ns),
+                    ms_text(d.latency.max_ns)
+                );
+                let _ = writeln!(
+                    s,
+                    "| same: fixes sent / faults received per s; lost | {} / {}; {} of {} | | |",
+                    rate_text(d.offered_fixes_per_s),
+                    rate_text(d.received_per_s),
+                    thousands(d.lost()),
+                    thousands(d.fixes_sent)
+                );
+                let _ = writeln!(
+                    s,
+                    "| same: CPU of the process (daemon + generator + subscriber + Zenoh) | {} of one core | | |",
+                    cpu_text(d)
+                );
+                let _ = writeln!(
+                    s,
+                    "| same: RSS before the first message -> at the end; per vessel | {} -> {}; {} | | |",
+                    mb_text(d.rss_base_kib),
+                    mb_text(d.rss_end_kib),
+                    per_vessel_text(d)
+                );
+            }
+            None => {
+                let _ = writeln!(
+                    s,
+                    "| daemon, 1,000 vessels: p99 GNSS publish -> fault receive | not run | < {TARGET_P99_MS} ms | missed |"
+                );
+            }
+        }
+        if let Some(r) = self.max_sustained(Path::Daemon) {
+            let _ = writeln!(
+                s,
+                "| memory per vessel, daemon, at its largest sustained fleet ({}) | {} | | |",
+                fleet_text(r),
+                per_vessel_text(r)
+            );
+        }
+        if let Some(r) = self.scaling_point(Path::Raw, HEADLINE_VESSELS) {
+            let _ = writeln!(
+                s,
+                "| raw Zenoh, same fleet and payloads, no daemon: p50 / p99 / max | {} / {} / {} | | |",
+                ms_text(r.latency.p50_ns),
+                p99_text(r),
+                ms_text(r.latency.max_ns)
+            );
+        }
+        let sustained_text = |p: Path| {
+            self.max_sustained(p).map_or("none sustained".into(), |r| {
+                format!(
+                    "{}{}/s ({})",
+                    if self.sustained_is_lower_bound(p) {
+                        ">= "
+                    } else {
+                        ""
+                    },
+                    rate_text(r.delivered_per_s()),
+                    fleet_text(r)
+                )
+            })
+        };
+        let _ = writeln!(
+            s,
+            "| maximum sustained rate, daemon (fixes in -> faults out) | {} | | |",
+            sustained_text(Path::Daemon)
+        );
+        let _ = writeln!(
+            s,
+            "| maximum sustained rate, raw Zenoh (fixes) | {} | | |",
+            sustained_text(Path::Raw)
+        );
+        let (ratio_text, ratio_verdict) = self.ratio_judged();
+        let _ = writeln!(
+            s,
+            "| daemon / raw Zenoh, maximum sustained rate | {ratio_text} | >= {TARGET_RATIO} | {ratio_verdict} |"
+        );
+        if let (Some(d), Some(r)) = (
+            self.capacity.iter().find(|r| r.spec.path == Path::Daemon),
+            self.capacity.iter().find(|r| r.spec.path == Path::Raw),
+        ) && r.received_per_s > 0.0
+        {
+            let _ = writeln!(
+                s,
+                "| flat-out capacity, daemon / raw Zenoh ({} vessels, back-pressure sets the pace) | {} / {} per s = {:.3} | | |",
+                thousands(d.spec.vessels as u64),
+                rate_text(d.received_per_s),
+                rate_text(r.received_per_s),
+                d.received_per_s / r.received_per_s
+            );
+        }
+
+        // 2. Scaling and the sustained-rate search.
+        let _ = writeln!(s);
+        let _ = writeln!(
+            s,
+            "Scaling at {hz} Hz per vessel, and the sustained-rate search (\"search\": {} s windows). \
+             Sustained: >= {:.0} % of the planned fixes sent, >= as much of those delivered within \
+             {} s after the window, and p99 <= {SUSTAINED_P99_MS} ms. CPU: the whole process, % of one core. RSS: the \
+             point's own process.",
+            o.ramp_window_s,
+            SUSTAINED_DELIVERED * 100.0,
+            o.grace_s
+        );
+        let _ = writeln!(s);
+        let _ = writeln!(
+            s,
+            "| vessels | path | run | fixes/s planned | sent | faults (raw: fixes) received/s | lost | p50 | p99 | max | CPU | generator lag (max) | RSS before -> end | per vessel | sustained |"
+        );
+        let _ = writeln!(
+            s,
+            "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"
+        );
+        let mut paced: Vec<(&str, &PointResult)> = self
+            .scaling
+            .iter()
+            .map(|r| ("scaling", r))
+            .chain(self.ramp.iter().map(|r| ("search", r)))
+            .collect();
+        paced.sort_by_key(|(_, r)| (r.spec.path == Path::Raw, r.spec.vessels));
+        for (run, r) in paced {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {run} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} -> {} | {} | {} |",
+                thousands(r.spec.vessels as u64),
+                path_text(r.spec.path),
+                rate_text(r.planned_fixes_per_s.unwrap_or(0.0)),
+                rate_text(r.offered_fixes_per_s),
+                rate_text(r.received_per_s),
+                lost_text(r),
+                ms_text(r.latency.p50_ns),
+                p99_text(r),
+                ms_text(r.latency.max_ns),
+                cpu_text(r),
+                lag_text(r),
+                mb_text(r.rss_base_kib),
+                mb_text(r.rss_end_kib),
+                per_vessel_text(r),
+                if sustained(r) {
+                    "yes"
+                } else if limited_by_generator(r) {
+                    "no: generator-bound"
+                } else {
+                    "no"
+                }
+            );
+        }
+
+        // 3. Flat out.
+        if !self.capacity.is_empty() {
+            let _ = writeln!(s);
+            let _ = writeln!(
+                s,
+                "Flat out ({} s windows): no pacing, the publishers block when Zenoh's queues are full; \
+                 latency then is mostly queueing.",
+                o.saturation_window_s
+            );
+            let _ = writeln!(s);
+            let _ = writeln!(
+                s,
+                "| path | fleet | fixes/s sent | received/s | p50 | p99 | CPU |"
+            );
+            let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---:|");
+            for r in &self.capacity {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} | {} | {} | {} | {} |",
+                    path_text(r.spec.path),
+                    fleet_text(r),
+                    rate_text(r.offered_fixes_per_s),
+                    rate_text(r.received_per_s),
+                    ms_text(r.latency.p50_ns),
+                    p99_text(r),
+                    cpu_text(r)
+                );
+            }
+        }
+
+        // Notes.
+        let _ = writeln!(s);
+        for n in self.notes() {
+            let _ = writeln!(s, "{n}");
+        }
+        s
+    }
+
+    fn notes(&self) -> Vec<String> {
+        let mut notes = Vec::new();
+        let settings = load::bench_settings(self.options.vessel_liveliness).ok();
+        if let Some(st) = &settings {
+            notes.push(format!(
+                "Daemon settings: `config/twind.toml` defaults except `[diagnose] enabled = false` \
+                 (the live diagnose, seconds of CPU per vessel every few minutes on a blocking thread, \
+                 is off for this benchmark). Predictions at their defaults: a {} s forecast at {} s steps \
+                 every {} s of message time per vessel; state and fault on every fix; vessel queue depth {}; \
+                 publishers `CongestionControl::Block`.",
+                st.publish.prediction_horizon_s,
+                st.publish.prediction_step_s,
+                st.publish.prediction_interval_s,
+                st.vessels.queue_depth
+            ));
+            notes.push(if st.publish.vessel_liveliness {
+                "Liveliness: one token per vessel at `asv/{vessel}/twin/alive` (the contract; \
+                 `publish.vessel_liveliness = true`). With Zenoh 1.10 every token under `asv/` slows \
+                 the routing of every message under it; `--no-vessel-liveliness` measures the daemon \
+                 without them."
+                    .to_string()
+            } else {
+                "Liveliness: no per-vessel tokens (`publish.vessel_liveliness = false`, \
+                 `--no-vessel-liveliness`): the contract's `asv/{vessel}/twin/alive` is not declared."
+                    .to_string()
+            });
+        }
+        let any = self.scaling.first().or(self.capacity.first());
+        if let Some(r) = any {
+            notes.push(format!(
+                "Load: per vessel and period one shaft-speed message (`asv/<id>/actuators`, {:.0} B) then one \
+                 fix (`asv/<id>/gnss`, {:.0} B, with heading and hdop), the contract's JSON as `twin-replay` \
+                 encodes it (`replay: false`); vessels spread evenly over the period. The fleet: the \
+                 simulated Otter's steady turn at {:.2} m/s (radius {:.0} m, shafts {:.0}/{:.0} rpm), each \
+                 vessel on its own circle and phase, GNSS noise added. A fault payload is about {:.0} B.",
+                r.actuators_bytes_mean,
+                r.gnss_bytes_mean,
+                r.circle_speed_mps,
+                r.circle_radius_m,
+                r.circle_rpm[0],
+                r.circle_rpm[1],
+                self.scaling
+                    .iter()
+                    .find(|r| r.spec.path == Path::Daemon)
+                    .map_or(0.0, |r| r.received_bytes_mean)
+            ));
+        }
+        notes.push(
+            "Zenoh: three peer sessions in one process (daemon listening, generator and subscriber \
+             connected to it; raw Zenoh: subscriber listening, generator connected), TCP on 127.0.0.1, \
+             multicast scouting and gossip off."
+                .into(),
+        );
+        notes.push(
+            "Latency: from the generator's stamp (taken just before encoding and putting the fix; the \
+             fix's `time` field is that stamp) to the receipt of the fault that fix produced (the \
+             fault echoes the fix's time) in the subscriber's callback. Lost: fixes stamped in the \
+             window whose fault had not arrived by the window's end plus the grace period (dropped or \
+             still queued). A p99 marked >= is over the delivered fixes only, more than 1 % being lost."
+                .into(),
+        );
+        notes.push(
+            "The load generator is one thread putting every vessel's messages through one session \
+             (a real fleet spreads them over as many processes, each with its own publishers), \
+             with each vessel's keys as strings (2 N declared publishers in one session would cost \
+             O(N^2) to declare and O(N) per put), blocking when Zenoh's queues are full \
+             (`CongestionControl::Block`, as `twin-replay`). \
+             Where \"sent\" is below \"planned\" the generator was held back (back-pressure, or its \
+             own routing cost per put, which grows with the declarations its session has learned); \
+             the lag column says by how much. Rates are what was actually sent and received."
+                .into(),
+        );
+        notes.push(
+            "CPU is the whole process: daemon, load generator, subscriber and every Zenoh session \
+             (the raw rows have no daemon). RSS per vessel = (RSS at the window's end - RSS with \
+             everything declared but no message sent) / vessels: the daemon's vessel tasks, twins and \
+             queues, and the Zenoh declarations they make in all three sessions."
+                .into(),
+        );
+        let mut groups: Vec<String> = Vec::new();
+        for r in self.scaling.iter().chain(&self.capacity) {
+            if r.spec.path == Path::Daemon
+                && (r.spec.vessels == HEADLINE_VESSELS || r.spec.rate_hz.is_none())
+            {
+                let parts: Vec<String> = r
+                    .cpu_pct_by_group
+                    .iter()
+                    .filter(|(_, v)| **v >= 0.5)
+                    .map(|(g, v)| format!("{g} {v:.0} %"))
+                    .collect();
+                groups.push(format!("{}: {}", fleet_text(r), parts.join(", ")));
+            }
+        }
+        for r in &self.capacity {
+            if r.spec.path == Path::Raw {
+                let parts: Vec<String> = r
+                    .cpu_pct_by_group
+                    .iter()
+                    .filter(|(_, v)| **v >= 0.5)
+                    .map(|(g, v)| format!("{g} {v:.0} %"))
+                    .collect();
+                groups.push(format!(
+                    "raw Zenoh, {}: {}",
+                    fleet_text(r),
+                    parts.join(", ")
+                ));
+            }
+        }
+        if !groups.is_empty() {
+            notes.push(format!(
+                "CPU by thread (% of one core, live threads): {}.",
+                groups.join("; ")
+            ));
+        }
+        for r in self.scaling.iter().chain(&self.ramp).chain(&self.capacity) {
+            if r.warmup_capped {
+                notes.push(format!(
+                    "{} {}: {} of the {} vessels had been heard from when the warm-up reached its cap \
+                     of {:.1} s ({} by the end); measured anyway.",
+                    path_text(r.spec.path),
+                    fleet_text(r),
+                    thousands(r.vessels_heard_at_start as u64),
+                    thousands(r.spec.vessels as u64),
+                    r.warmup_used_s,
+                    thousands(r.vessels_heard as u64)
+                ));
+            }
+            if r.unparsable > 0 {
+                notes.push(format!(
+                    "{} {}: {} messages the subscriber could not attribute.",
+                    path_text(r.spec.path),
+                    fleet_text(r),
+                    r.unparsable
+                ));
+            }
+        }
+        let generator_bound: Vec<String> = self
+            .scaling
+            .iter()
+            .chain(&self.ramp)
+            .filter(|r| limited_by_generator(r))
+            .map(|r| {
+                format!(
+                    "{} {} (generator thread {:.0} % of a core)",
+                    path_text(r.spec.path),
+                    fleet_text(r),
+                    r.generator_cpu_pct().unwrap_or(0.0)
+                )
+            })
+            .collect();
+        if !generator_bound.is_empty() {
+            notes.push(format!(
+                "Runs that delivered in time all they sent but could not send their plan, the \
+                 generator's thread near a full core: {}. There the one-thread generator is the \
+                 limit, and the path's maximum sustained rate above is a lower bound (>=).",
+                generator_bound.join("; ")
+            ));
+        }
+        notes.push(
+            "Memory per vessel of runs that were not sustained includes the messages queued in the \
+             daemon and in Zenoh at the window's end."
+                .into(),
+        );
+        notes.push(
+            "Every point ran in a fresh child process (`twin-bench daemon-point`). Speed figures are \
+             never asserted in tests."
+                .into(),
+        );
+        notes
+    }
+}
+
+fn lag_text(r: &PointResult) -> String {
+    r.generator_max_lag_ms.map_or("-".into(), |l| {
+        if l < 1000.0 {
+            format!("{l:.1} ms")
+        } else {
+            format!("{:.1} s", l / 1e3)
+        }
+    })
+}
+
+fn lost_text(r: &PointResult) -> String {
+    if r.fixes_sent == 0 {
+        return "-".into();
+    }
+    let lost = r.lost();
+    if lost == 0 {
+        "0".into()
+    } else {
+        format!(
+            "{} ({:.1} %)",
+            thousands(lost),
+            100.0 * lost as f64 / r.fixes_sent as f64
+        )
+    }
+}
