@@ -6,6 +6,11 @@
 //! and must name the right cause with its size within 20 %, and nothing on
 //! the clean logs.
 
+#[path = "common/hidden.rs"]
+mod hidden;
+
+use hidden::{Hidden, judge};
+
 use std::io::Cursor;
 use std::path::Path;
 
@@ -16,17 +21,6 @@ use twin_cli::simulate::{OutputFormat, simulate_to_bytes};
 use twin_core::diagnose::DiagnoseConfig;
 use twin_sim::{CurrentSpec, Scenario};
 use twin_wire::SourceChoice;
-
-/// The hidden effect of one draw, as the test knows it (the diagnosis does not).
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Hidden {
-    Nothing,
-    Current { speed_mps: f64, toward_deg: f64 },
-    HeadingOffset { offset_deg: f64 },
-    SogScale { scale: f64 },
-    Latency { latency_s: f64 },
-    Loss { port: bool, loss: f64 },
-}
 
 fn base() -> Scenario {
     let path = concat!(
@@ -89,67 +83,6 @@ fn diagnose_scenario(sc: &Scenario, name: &str) -> DiagnoseReport {
     let (bytes, _) = simulate_to_bytes(sc, OutputFormat::JsonLines).unwrap();
     let log = load(Cursor::new(bytes), Path::new(name), SourceChoice::Best).unwrap();
     diagnose_loaded(name, &log, &DiagnoseConfig::default()).unwrap()
-}
-
-fn param(r: &DiagnoseReport, i: usize, name: &str) -> f64 {
-    r.findings[i].parameters[name].as_f64().unwrap()
-}
-
-/// Checks a diagnosis against the hidden effect; `Err` says what is wrong.
-fn judge(h: Hidden, r: &DiagnoseReport) -> Result<(), String> {
-    let causes: Vec<&str> = r.findings.iter().map(|f| f.cause.as_str()).collect();
-    let within = |got: f64, want: f64| (got - want).abs() <= 0.2 * want.abs();
-    match h {
-        Hidden::Nothing => {
-            return if causes.is_empty() {
-                Ok(())
-            } else {
-                Err(format!("named {causes:?} on a clean log"))
-            };
-        }
-        _ if causes.len() != 1 => return Err(format!("named {causes:?}")),
-        _ => {}
-    }
-    let ok = match h {
-        Hidden::Nothing => unreachable!(),
-        Hidden::Current {
-            speed_mps,
-            toward_deg,
-        } => {
-            causes[0] == "current" && {
-                let (s, d) = (param(r, 0, "speed_mps"), param(r, 0, "toward_deg"));
-                // The current as a vector within 20 % of its speed.
-                let (tn, te) = (
-                    speed_mps * toward_deg.to_radians().cos(),
-                    speed_mps * toward_deg.to_radians().sin(),
-                );
-                let (gn, ge) = (s * d.to_radians().cos(), s * d.to_radians().sin());
-                (gn - tn).hypot(ge - te) <= 0.2 * speed_mps
-            }
-        }
-        Hidden::HeadingOffset { offset_deg } => {
-            causes[0] == "heading_offset" && within(param(r, 0, "offset_deg"), offset_deg)
-        }
-        Hidden::SogScale { scale } => {
-            causes[0] == "sog_scale" && within(param(r, 0, "scale") - 1.0, scale - 1.0)
-        }
-        Hidden::Latency { latency_s } => {
-            causes[0] == "gnss_latency" && within(param(r, 0, "latency_s"), latency_s)
-        }
-        Hidden::Loss { port, loss } => {
-            causes[0] == "thruster_loss"
-                && r.findings[0].parameters["side"] == if port { "port" } else { "starboard" }
-                && within(param(r, 0, "loss"), loss)
-        }
-    };
-    if ok {
-        Ok(())
-    } else {
-        Err(format!(
-            "named {:?} with {:?}",
-            causes, r.findings[0].parameters
-        ))
-    }
 }
 
 #[test]

@@ -29,6 +29,11 @@
 //! bench/requirements.txt`). Without them the tests print why and pass,
 //! unless `TWIN_BENCH_REQUIRE_NUMPY=1` is set (CI sets it), when they fail.
 
+#[path = "common/hidden.rs"]
+mod hidden;
+
+use hidden::{Hidden, judge};
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -49,17 +54,6 @@ const REQUIRE_NUMPY_VAR: &str = "TWIN_BENCH_REQUIRE_NUMPY";
 
 /// Draws in the main test.
 const DRAWS: usize = 36;
-
-/// The hidden effect of one draw, as the test knows it (the diagnosis does not).
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Hidden {
-    Nothing,
-    Current { speed_mps: f64, toward_deg: f64 },
-    HeadingOffset { offset_deg: f64 },
-    SogScale { scale: f64 },
-    Latency { latency_s: f64 },
-    Loss { port: bool, loss: f64 },
-}
 
 /// The six kinds of effect, in the order `draw` numbers them.
 const KINDS: usize = 6;
@@ -212,67 +206,6 @@ fn simulate(effects: &[Hidden], seed: u64, dir: &Path, name: &str) -> PathBuf {
 
 fn diagnose_log(log: &Path) -> DiagnoseReport {
     diagnose_path(log, SourceChoice::Best, &DiagnoseConfig::default()).unwrap()
-}
-
-fn param(r: &DiagnoseReport, i: usize, name: &str) -> f64 {
-    r.findings[i].parameters[name].as_f64().unwrap()
-}
-
-/// Checks a diagnosis against the hidden effect (the criteria of
-/// `hidden_effects.rs`); `Err` says what is wrong.
-fn judge(h: Hidden, r: &DiagnoseReport) -> Result<(), String> {
-    let causes: Vec<&str> = r.findings.iter().map(|f| f.cause.as_str()).collect();
-    let within = |got: f64, want: f64| (got - want).abs() <= 0.2 * want.abs();
-    match h {
-        Hidden::Nothing => {
-            return if causes.is_empty() {
-                Ok(())
-            } else {
-                Err(format!("named {causes:?} on a clean log"))
-            };
-        }
-        _ if causes.len() != 1 => return Err(format!("named {causes:?}")),
-        _ => {}
-    }
-    let ok = match h {
-        Hidden::Nothing => unreachable!(),
-        Hidden::Current {
-            speed_mps,
-            toward_deg,
-        } => {
-            causes[0] == "current" && {
-                let (s, d) = (param(r, 0, "speed_mps"), param(r, 0, "toward_deg"));
-                let (tn, te) = (
-                    speed_mps * toward_deg.to_radians().cos(),
-                    speed_mps * toward_deg.to_radians().sin(),
-                );
-                let (gn, ge) = (s * d.to_radians().cos(), s * d.to_radians().sin());
-                (gn - tn).hypot(ge - te) <= 0.2 * speed_mps
-            }
-        }
-        Hidden::HeadingOffset { offset_deg } => {
-            causes[0] == "heading_offset" && within(param(r, 0, "offset_deg"), offset_deg)
-        }
-        Hidden::SogScale { scale } => {
-            causes[0] == "sog_scale" && within(param(r, 0, "scale") - 1.0, scale - 1.0)
-        }
-        Hidden::Latency { latency_s } => {
-            causes[0] == "gnss_latency" && within(param(r, 0, "latency_s"), latency_s)
-        }
-        Hidden::Loss { port, loss } => {
-            causes[0] == "thruster_loss"
-                && r.findings[0].parameters["side"] == if port { "port" } else { "starboard" }
-                && within(param(r, 0, "loss"), loss)
-        }
-    };
-    if ok {
-        Ok(())
-    } else {
-        Err(format!(
-            "named {:?} with {:?}",
-            causes, r.findings[0].parameters
-        ))
-    }
 }
 
 /// The hidden effect in the table's words.

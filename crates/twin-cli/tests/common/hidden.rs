@@ -1,0 +1,80 @@
+//! What the hidden-effect tests share (`hidden_effects.rs` on the project's
+//! simulator, `hidden_effects_othersim.rs` on the independent one): the
+//! effect a draw hides, and the verdict on a diagnosis of it: exactly the
+//! right cause named, its size within 20 % (a current as a vector within
+//! 20 % of its speed), nothing named on a clean log.
+
+use twin_cli::diagnose::DiagnoseReport;
+
+/// The hidden effect of one draw, as the test knows it (the diagnosis does not).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Hidden {
+    Nothing,
+    Current { speed_mps: f64, toward_deg: f64 },
+    HeadingOffset { offset_deg: f64 },
+    SogScale { scale: f64 },
+    Latency { latency_s: f64 },
+    Loss { port: bool, loss: f64 },
+}
+
+/// A finding's numeric parameter.
+fn param(r: &DiagnoseReport, i: usize, name: &str) -> f64 {
+    r.findings[i].parameters[name].as_f64().unwrap()
+}
+
+/// Checks a diagnosis against the hidden effect; `Err` says what is wrong.
+pub fn judge(h: Hidden, r: &DiagnoseReport) -> Result<(), String> {
+    let causes: Vec<&str> = r.findings.iter().map(|f| f.cause.as_str()).collect();
+    let within = |got: f64, want: f64| (got - want).abs() <= 0.2 * want.abs();
+    match h {
+        Hidden::Nothing => {
+            return if causes.is_empty() {
+                Ok(())
+            } else {
+                Err(format!("named {causes:?} on a clean log"))
+            };
+        }
+        _ if causes.len() != 1 => return Err(format!("named {causes:?}")),
+        _ => {}
+    }
+    let ok = match h {
+        Hidden::Nothing => unreachable!(),
+        Hidden::Current {
+            speed_mps,
+            toward_deg,
+        } => {
+            causes[0] == "current" && {
+                let (s, d) = (param(r, 0, "speed_mps"), param(r, 0, "toward_deg"));
+                // The current as a vector within 20 % of its speed.
+                let (tn, te) = (
+                    speed_mps * toward_deg.to_radians().cos(),
+                    speed_mps * toward_deg.to_radians().sin(),
+                );
+                let (gn, ge) = (s * d.to_radians().cos(), s * d.to_radians().sin());
+                (gn - tn).hypot(ge - te) <= 0.2 * speed_mps
+            }
+        }
+        Hidden::HeadingOffset { offset_deg } => {
+            causes[0] == "heading_offset" && within(param(r, 0, "offset_deg"), offset_deg)
+        }
+        Hidden::SogScale { scale } => {
+            causes[0] == "sog_scale" && within(param(r, 0, "scale") - 1.0, scale - 1.0)
+        }
+        Hidden::Latency { latency_s } => {
+            causes[0] == "gnss_latency" && within(param(r, 0, "latency_s"), latency_s)
+        }
+        Hidden::Loss { port, loss } => {
+            causes[0] == "thruster_loss"
+                && r.findings[0].parameters["side"] == if port { "port" } else { "starboard" }
+                && within(param(r, 0, "loss"), loss)
+        }
+    };
+    if ok {
+        Ok(())
+    } else {
+        Err(format!(
+            "named {:?} with {:?}",
+            causes, r.findings[0].parameters
+        ))
+    }
+}
