@@ -75,17 +75,13 @@ pub enum VesselEvent {
 /// scans them, so six declared publishers per vessel made the whole fleet
 /// slower as it grew (`twin-bench daemon` measured it). A put on a key
 /// expression (validated once, here) costs the same without them.
-struct Publishers {
+struct OutputKeys {
     state: KeyExpr<'static>,
     fault: KeyExpr<'static>,
     prediction: KeyExpr<'static>,
     alarm: KeyExpr<'static>,
     stats: KeyExpr<'static>,
     finding: KeyExpr<'static>,
-}
-
-fn publisher(key: String) -> zenoh::Result<KeyExpr<'static>> {
-    KeyExpr::try_from(key)
 }
 
 /// A vessel's task.
@@ -203,7 +199,7 @@ impl VesselTask {
     /// everything queued has been handled) or the vessel falls silent.
     pub async fn run(mut self, mut rx: mpsc::Receiver<VesselEvent>) -> Counters {
         let keys = self.settings.keys.clone();
-        let publishers = match self.declare(&keys) {
+        let outputs = match self.output_keys(&keys) {
             Ok(p) => p,
             Err(e) => {
                 tracing::error!(vessel = self.id.as_str(), "bad output key: {e}");
@@ -239,13 +235,13 @@ impl VesselTask {
                 }, if self.diagnosis.is_some() => {
                     self.diagnosis = None;
                     if let Some(findings) = done {
-                        self.publish_findings(findings, &publishers).await;
+                        self.publish_findings(findings, &outputs).await;
                     }
                 }
                 ev = rx.recv() => match ev {
                     Some(ev) => {
                         self.last_event_wall = Instant::now();
-                        self.handle(ev, &publishers).await;
+                        self.handle(ev, &outputs).await;
                     }
                     None => break,
                 },
@@ -255,10 +251,10 @@ impl VesselTask {
                         tracing::info!(vessel = self.id.as_str(), "silent: dropping the vessel's twin");
                         break;
                     }
-                    self.check_stale(&publishers).await;
+                    self.check_stale(&outputs).await;
                     if now.duration_since(last_stats).as_secs_f64() >= self.settings.publish.stats_interval_s {
                         last_stats = now;
-                        self.publish_stats(&publishers).await;
+                        self.publish_stats(&outputs).await;
                     }
                     if self.unsaved && now.duration_since(last_save).as_secs_f64() >= self.settings.persistence.save_interval_s {
                         last_save = now;
@@ -268,21 +264,21 @@ impl VesselTask {
             }
         }
         // Last words: state, fault and statistics, then the calibration.
-        self.publish_state_and_fault(&publishers, false).await;
-        self.publish_stats(&publishers).await;
+        self.publish_state_and_fault(&outputs, false).await;
+        self.publish_stats(&outputs).await;
         self.save();
         drop(token);
         self.counters
     }
 
-    fn declare(&self, keys: &twin_wire::KeySpace) -> zenoh::Result<Publishers> {
-        Ok(Publishers {
-            state: publisher(keys.twin_state(&self.id))?,
-            fault: publisher(keys.twin_fault(&self.id))?,
-            prediction: publisher(keys.twin_prediction(&self.id))?,
-            alarm: publisher(keys.twin_alarm(&self.id))?,
-            stats: publisher(keys.twin_stats(&self.id))?,
-            finding: publisher(keys.key(&self.id, Topic::TwinFinding))?,
+    fn output_keys(&self, keys: &twin_wire::KeySpace) -> zenoh::Result<OutputKeys> {
+        Ok(OutputKeys {
+            state: KeyExpr::try_from(keys.twin_state(&self.id))?,
+            fault: KeyExpr::try_from(keys.twin_fault(&self.id))?,
+            prediction: KeyExpr::try_from(keys.twin_prediction(&self.id))?,
+            alarm: KeyExpr::try_from(keys.twin_alarm(&self.id))?,
+            stats: KeyExpr::try_from(keys.twin_stats(&self.id))?,
+            finding: KeyExpr::try_from(keys.key(&self.id, Topic::TwinFinding))?,
         })
     }
 
@@ -307,7 +303,7 @@ impl VesselTask {
         }
     }
 
-    async fn handle(&mut self, ev: VesselEvent, p: &Publishers) {
+    async fn handle(&mut self, ev: VesselEvent, p: &OutputKeys) {
         match ev {
             VesselEvent::Refused { reason, detail } => {
                 self.counters.reject(self.id.as_str(), reason, &detail)
@@ -400,7 +396,7 @@ impl VesselTask {
         }
     }
 
-    async fn on_fix(&mut self, fix: &GnssFix, p: &Publishers) {
+    async fn on_fix(&mut self, fix: &GnssFix, p: &OutputKeys) {
         match self.twin.on_gnss(fix) {
             Ok(out) => {
                 self.last_fix_wall = Some(Instant::now());
@@ -465,7 +461,7 @@ impl VesselTask {
     }
 
     /// Publishes a diagnosis when its causes differ from the last published.
-    async fn publish_findings(&mut self, findings: FindingsMessage, p: &Publishers) {
+    async fn publish_findings(&mut self, findings: FindingsMessage, p: &OutputKeys) {
         let causes = findings.causes();
         if self.published_causes.as_ref() == Some(&causes) {
             return;
@@ -481,7 +477,7 @@ impl VesselTask {
             .await;
     }
 
-    async fn publish_step(&mut self, out: &StepOutput, p: &Publishers) {
+    async fn publish_step(&mut self, out: &StepOutput, p: &OutputKeys) {
         let vessel = self.id.as_str();
         let state = StateMessage::new(vessel, &out.state, false, self.replay);
         self.put_state(&state, p).await;
@@ -504,7 +500,7 @@ impl VesselTask {
         }
     }
 
-    async fn publish_alarm(&self, change: &StatusChange, p: &Publishers) {
+    async fn publish_alarm(&self, change: &StatusChange, p: &OutputKeys) {
         let alarm = AlarmMessage::new(self.id.as_str(), change, self.replay);
         tracing::info!(
             vessel = self.id.as_str(),
@@ -515,7 +511,7 @@ impl VesselTask {
         self.put_json(Topic::TwinAlarm, &p.alarm, &alarm).await;
     }
 
-    async fn publish_prediction(&self, p: &Publishers) {
+    async fn publish_prediction(&self, p: &OutputKeys) {
         let Some(state) = self.twin.state_report() else {
             return;
         };
@@ -536,7 +532,7 @@ impl VesselTask {
             .await;
     }
 
-    async fn put_state(&self, state: &StateMessage, p: &Publishers) {
+    async fn put_state(&self, state: &StateMessage, p: &OutputKeys) {
         let Ok(bytes) = serde_json::to_vec(state) else {
             return;
         };
@@ -574,7 +570,7 @@ impl VesselTask {
         }
     }
 
-    async fn publish_state_and_fault(&self, p: &Publishers, stale: bool) {
+    async fn publish_state_and_fault(&self, p: &OutputKeys, stale: bool) {
         let Some(state) = self.twin.state_report() else {
             return;
         };
@@ -589,7 +585,7 @@ impl VesselTask {
         .await;
     }
 
-    async fn check_stale(&mut self, p: &Publishers) {
+    async fn check_stale(&mut self, p: &OutputKeys) {
         let Some(last) = self.last_fix_wall else {
             return;
         };
@@ -614,7 +610,7 @@ impl VesselTask {
         }
     }
 
-    async fn publish_stats(&self, p: &Publishers) {
+    async fn publish_stats(&self, p: &OutputKeys) {
         self.put_json(Topic::TwinStats, &p.stats, &self.stats_message())
             .await;
     }
