@@ -307,8 +307,14 @@ pub fn format_rfc3339(time_s: f64) -> Result<String, TimeError> {
     if !(MIN_TIME_S..MAX_TIME_S).contains(&time_s) {
         return Err(TimeError::YearOutOfRange);
     }
-    // Rounding the last microsecond of 9999 up must not leave the range.
-    let total_us = ((time_s * 1e6).round() as i64).min(253_402_300_799_999_999);
+    // Whole seconds and their fraction are split exactly (`t - floor(t)` is
+    // representable); only the fraction is scaled. `time_s * 1e6` would
+    // round to the spacing of doubles near 1e17 (up to 16 us after the
+    // year 6000). Rounding the last microsecond of 9999 up must not leave
+    // the range.
+    let whole_s = time_s.floor();
+    let fraction_us = ((time_s - whole_s) * 1e6).round() as i64;
+    let total_us = (whole_s as i64 * 1_000_000 + fraction_us).min(253_402_300_799_999_999);
     let us_per_day = SECONDS_PER_DAY * 1_000_000;
     let days = total_us.div_euclid(us_per_day);
     let us_of_day = total_us.rem_euclid(us_per_day);
