@@ -18,6 +18,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use crate::aekf::AekfState;
+use crate::linalg::{mul, mul_sparse_left, mul_t, sym_mul_t_sparse};
 use crate::model::Model;
 
 /// One predicted point.
@@ -68,15 +69,19 @@ where
             break;
         }
         let f = tr.jacobian;
+        let f_pattern = &Mdl::TRANSITION_PATTERN;
         let psi = tr.fault_sensitivity;
-        let f_pxt = f * p_xt;
-        p_xx = f * p_xx * f.transpose()
-            + f_pxt * psi.transpose()
-            + psi * f_pxt.transpose()
-            + psi * p_tt * psi.transpose()
+        // The filter's own small products (linalg), skipping F's known zeros.
+        let f_pxt = mul_sparse_left(&f, f_pattern, &p_xt);
+        let psi_ptt = mul(&psi, &p_tt);
+        let cross = mul_t(&f_pxt, &psi);
+        p_xx = sym_mul_t_sparse(&mul_sparse_left(&f, f_pattern, &p_xx), &f, f_pattern)
+            + cross
+            + cross.transpose()
+            + mul_t(&psi_ptt, &psi)
             + q_density * dt_s;
         p_xx = (p_xx + p_xx.transpose()) * 0.5;
-        p_xt = f_pxt + psi * p_tt;
+        p_xt = f_pxt + psi_ptt;
         x = tr.next;
         time_s += dt_s;
         out.push(PredictedPoint {
