@@ -450,7 +450,9 @@ impl<const N: usize> OtterTwin<N> {
         // keep sub-steps at half of it, and at most MAX_SUBSTEP_S.
         let p = &self.params;
         let r_start = x0[idx::R];
-        let r_end_euler = r_start + dt_s.min(MAX_SUBSTEP_S) * self.xdot(x0, &thrust, theta)[idx::R];
+        // The derivative at the start, also the first sub-step's k1.
+        let xdot_start = self.xdot(x0, &thrust, theta);
+        let r_end_euler = r_start + dt_s.min(MAX_SUBSTEP_S) * xdot_start[idx::R];
         let r_max = r_start.abs().max(r_end_euler.abs());
         let yaw_tau_s = p.mass_matrix[(2, 2)]
             / (-p.linear_damping[2] * (1.0 + 2.0 * p.yaw_damping_nonlinear_s * r_max));
@@ -460,11 +462,15 @@ impl<const N: usize> OtterTwin<N> {
         let mut x = *x0;
         let mut f = SMatrix::<f64, 8, 8>::identity();
         let mut psi = SMatrix::<f64, 8, 2>::zeros();
-        for _ in 0..substeps {
+        for substep in 0..substeps {
             // The state by classical RK4; the Jacobians of the sub-step from
             // the derivatives at its midpoint (the second RK stage), as
             // exp(h A_mid) to third order: accurate to O(h^3) (A_mid).
-            let k1 = self.xdot(&x, &thrust, theta);
+            let k1 = if substep == 0 {
+                xdot_start
+            } else {
+                self.xdot(&x, &thrust, theta)
+            };
             let mid = self.dynamics(&(x + k1 * (0.5 * h)), &thrust, theta);
             // The products skip the known zeros of A and of F (the patterns).
             let ha = mid.a * h;
@@ -474,8 +480,14 @@ impl<const N: usize> OtterTwin<N> {
             let ha_b = mul_sparse_left(&ha, &A_PATTERN, &mid.b);
             let ha2_b = mul_sparse_left(&ha, &A_PATTERN, &ha_b);
             let b_sub = (mid.b + ha_b * 0.5 + ha2_b * (1.0 / 6.0)) * h;
-            psi = mul_sparse_left(&f_sub, &F_PATTERN, &psi) + b_sub;
-            f = mul_sparse_left(&f_sub, &F_PATTERN, &f);
+            if substep == 0 {
+                // F and Psi start as I and 0: the products would copy.
+                psi = b_sub;
+                f = f_sub;
+            } else {
+                psi = mul_sparse_left(&f_sub, &F_PATTERN, &psi) + b_sub;
+                f = mul_sparse_left(&f_sub, &F_PATTERN, &f);
+            }
             let k2 = mid.xdot;
             let k3 = self.xdot(&(x + k2 * (0.5 * h)), &thrust, theta);
             let k4 = self.xdot(&(x + k3 * h), &thrust, theta);
