@@ -428,6 +428,18 @@ fn fleet_text(r: &PointResult) -> String {
     }
 }
 
+/// A point's CPU by thread group, `group N %`, the groups under half a
+/// percent left out.
+fn cpu_groups_text(r: &PointResult) -> String {
+    let parts: Vec<String> = r
+        .cpu_pct_by_group
+        .iter()
+        .filter(|(_, v)| **v >= 0.5)
+        .map(|(g, v)| format!("{g} {v:.0} %"))
+        .collect();
+    parts.join(", ")
+}
+
 fn path_text(p: Path) -> &'static str {
     match p {
         Path::Daemon => "daemon",
@@ -834,27 +846,15 @@ impl DaemonReport {
             if r.spec.path == Path::Daemon
                 && (r.spec.vessels == HEADLINE_VESSELS || r.spec.rate_hz.is_none())
             {
-                let parts: Vec<String> = r
-                    .cpu_pct_by_group
-                    .iter()
-                    .filter(|(_, v)| **v >= 0.5)
-                    .map(|(g, v)| format!("{g} {v:.0} %"))
-                    .collect();
-                groups.push(format!("{}: {}", fleet_text(r), parts.join(", ")));
+                groups.push(format!("{}: {}", fleet_text(r), cpu_groups_text(r)));
             }
         }
         for r in &self.capacity {
             if r.spec.path == Path::Raw {
-                let parts: Vec<String> = r
-                    .cpu_pct_by_group
-                    .iter()
-                    .filter(|(_, v)| **v >= 0.5)
-                    .map(|(g, v)| format!("{g} {v:.0} %"))
-                    .collect();
                 groups.push(format!(
                     "raw Zenoh, {}: {}",
                     fleet_text(r),
-                    parts.join(", ")
+                    cpu_groups_text(r)
                 ));
             }
         }

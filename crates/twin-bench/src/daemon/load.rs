@@ -512,6 +512,31 @@ impl Generator {
             .wait()
     }
 
+    /// Puts one encoded message stamped at `stamp_us` and counts it: its
+    /// bytes, whether its stamp lies in the window, or an error (encoding
+    /// or putting).
+    fn put_counted<E>(
+        &self,
+        key: &KeyExpr<'static>,
+        encoded: Result<Vec<u8>, E>,
+        stamp_us: i64,
+        bytes_sent: &AtomicU64,
+        sent_in_window: &AtomicU64,
+    ) {
+        let s = &self.shared;
+        let Ok(bytes) = encoded else {
+            s.errors.fetch_add(1, Ordering::Relaxed);
+            return;
+        };
+        bytes_sent.fetch_add(bytes.len() as u64, Ordering::Relaxed);
+        if self.put(key, bytes).is_err() {
+            s.errors.fetch_add(1, Ordering::Relaxed);
+        }
+        if self.window.contains(stamp_us) {
+            sent_in_window.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
     fn run(self) {
         let n = self.keys.len();
         let mut rng = SplitMix64::new(0x7717_b0a7);
@@ -539,39 +564,23 @@ impl Generator {
             let a_us = self.stamp(&mut last[v][0]);
             let t = self.epoch_s + a_us as f64 * 1e-6;
             let shafts = self.fleet.shafts(t, &mut rng);
-            match encode_actuators(&ActuatorCommand::Speeds(shafts), false) {
-                Ok(bytes) => {
-                    s.actuators_bytes
-                        .fetch_add(bytes.len() as u64, Ordering::Relaxed);
-                    if self.put(&self.keys[v][0], bytes).is_err() {
-                        s.errors.fetch_add(1, Ordering::Relaxed);
-                    }
-                    if self.window.contains(a_us) {
-                        s.actuators_in_window.fetch_add(1, Ordering::Relaxed);
-                    }
-                }
-                Err(_) => {
-                    s.errors.fetch_add(1, Ordering::Relaxed);
-                }
-            }
+            self.put_counted(
+                &self.keys[v][0],
+                encode_actuators(&ActuatorCommand::Speeds(shafts), false),
+                a_us,
+                &s.actuators_bytes,
+                &s.actuators_in_window,
+            );
             let g_us = self.stamp(&mut last[v][1]);
             let t = self.epoch_s + g_us as f64 * 1e-6;
             let fix = self.fleet.fix(v, t, g_us as f64 * 1e-6, &mut rng);
-            match encode_gnss(&fix, false) {
-                Ok(bytes) => {
-                    s.gnss_bytes
-                        .fetch_add(bytes.len() as u64, Ordering::Relaxed);
-                    if self.put(&self.keys[v][1], bytes).is_err() {
-                        s.errors.fetch_add(1, Ordering::Relaxed);
-                    }
-                    if self.window.contains(g_us) {
-                        s.fixes_in_window.fetch_add(1, Ordering::Relaxed);
-                    }
-                }
-                Err(_) => {
-                    s.errors.fetch_add(1, Ordering::Relaxed);
-                }
-            }
+            self.put_counted(
+                &self.keys[v][1],
+                encode_gnss(&fix, false),
+                g_us,
+                &s.gnss_bytes,
+                &s.fixes_in_window,
+            );
             s.sent.fetch_add(1, Ordering::Relaxed);
             i += 1;
         }
