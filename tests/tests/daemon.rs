@@ -105,6 +105,30 @@ fn states(samples: &[zenoh::sample::Sample]) -> Vec<StateMessage> {
         .collect()
 }
 
+/// Receives a vessel's outputs until the fault of its last fix (stamped
+/// `last_fault_time`) has arrived, for at most 30 s; every sample received.
+/// On a loaded machine the daemon can still be working through its queue
+/// when the publisher is done, and stopping it then cuts off the last
+/// fixes' outputs (a fixed pause before stopping raced with that). If the
+/// fault never comes, the comparisons that follow fail.
+async fn receive_until_fault(
+    sub: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+    last_fault_time: &str,
+) -> Vec<zenoh::sample::Sample> {
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(30);
+    let mut got = Vec::new();
+    while let Ok(Ok(s)) = tokio::time::timeout_at(deadline, sub.recv_async()).await {
+        let is_last = s.key_expr().as_str().ends_with("/twin/fault")
+            && serde_json::from_slice::<FaultMessage>(&s.payload().to_bytes())
+                .is_ok_and(|f| f.time == last_fault_time);
+        got.push(s);
+        if is_last {
+            break;
+        }
+    }
+    got
+}
+
 fn drain(
     sub: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
 ) -> Vec<zenoh::sample::Sample> {
@@ -123,14 +147,15 @@ async fn a_replayed_trial_gives_the_daemon_the_offline_estimates() {
     let rig = rig(Settings::default()).await;
     let sub = rig.collect("otter-1").await;
     rig.publish("otter-1", &msgs).await;
-    let summary = rig.stop().await;
-    let samples = drain(&sub);
-    let fault = last_fault(&samples);
     let offline_fault = FaultMessage::new(
         "otter-1",
         &expected.fault_report(expected.state_report().unwrap().time_s),
         true,
     );
+    let mut samples = receive_until_fault(&sub, &offline_fault.time).await;
+    let summary = rig.stop().await;
+    samples.extend(drain(&sub));
+    let fault = last_fault(&samples);
     println!(
         "daemon: port {:?} +- {:?} ({:?}); offline: port {:?}",
         fault.thrusters.port.loss,
@@ -202,10 +227,21 @@ async fn three_vessels_at_once_do_not_talk_across() {
             }
         }
     }
+    let mut received = Vec::new();
+    for (i, (vessel, msgs)) in trials.iter().enumerate() {
+        let expected = offline(msgs);
+        let last = FaultMessage::new(
+            vessel,
+            &expected.fault_report(expected.state_report().unwrap().time_s),
+            true,
+        );
+        received.push(receive_until_fault(&subs[i], &last.time).await);
+    }
     rig.stop().await;
     for (i, (vessel, msgs)) in trials.iter().enumerate() {
         let expected = offline(msgs);
-        let samples = drain(&subs[i]);
+        let mut samples = std::mem::take(&mut received[i]);
+        samples.extend(drain(&subs[i]));
         assert!(
             samples
                 .iter()
@@ -308,6 +344,12 @@ async fn bad_inputs_are_refused_with_their_reasons_and_change_nothing() {
         .put("asv/a/b/gnss", good[split].1.clone())
         .await
         .unwrap();
+    let offline_fault = FaultMessage::new(
+        "otter-1",
+        &expected.fault_report(expected.state_report().unwrap().time_s),
+        true,
+    );
+    let mut samples = receive_until_fault(&sub, &offline_fault.time).await;
     let summary = rig.stop().await;
 
     let counters = &summary.vessels["otter-1"];
@@ -327,12 +369,8 @@ async fn bad_inputs_are_refused_with_their_reasons_and_change_nothing() {
         "no twin for a bad id: {:?}",
         summary.vessels.keys()
     );
-    let fault = last_fault(&drain(&sub));
-    let offline_fault = FaultMessage::new(
-        "otter-1",
-        &expected.fault_report(expected.state_report().unwrap().time_s),
-        true,
-    );
+    samples.extend(drain(&sub));
+    let fault = last_fault(&samples);
     assert_eq!(fault.thrusters, offline_fault.thrusters);
 }
 
