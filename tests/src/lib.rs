@@ -96,6 +96,8 @@ pub mod wire {
     use twin_wire::messages::{
         ActuatorCommand, decode_actuators, decode_gnss, encode_actuators, encode_gnss,
     };
+    use twin_wire::outputs::FaultMessage;
+    use zenoh::sample::Sample;
 
     /// Payloads in time order, each with its topic (`gnss` or `actuators`).
     pub type Messages = Vec<(&'static str, Vec<u8>)>;
@@ -171,6 +173,49 @@ pub mod wire {
             );
             tokio::time::sleep(Duration::from_millis(20)).await;
         }
+    }
+
+    /// The daemon's output subscriber of the tests.
+    pub type Outputs = zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<Sample>>;
+
+    /// A fault output (`.../twin/fault`) decoded; `None` for other samples.
+    pub fn fault_of(s: &Sample) -> Option<FaultMessage> {
+        if !s.key_expr().as_str().ends_with("/twin/fault") {
+            return None;
+        }
+        serde_json::from_slice(&s.payload().to_bytes()).ok()
+    }
+
+    /// Receives from `sub` until `arrived` says the awaited output has come,
+    /// for at most `within`; every sample received. On a loaded machine the
+    /// daemon can still be working through its queues when the publisher is
+    /// done, and stopping it then cuts off the last outputs (a fixed pause
+    /// raced with that). If the output never comes, the comparisons that
+    /// follow fail.
+    pub async fn receive_until(
+        sub: &Outputs,
+        within: Duration,
+        mut arrived: impl FnMut(&Sample) -> bool,
+    ) -> Vec<Sample> {
+        let deadline = tokio::time::Instant::now() + within;
+        let mut got = Vec::new();
+        while let Ok(Ok(s)) = tokio::time::timeout_at(deadline, sub.recv_async()).await {
+            let done = arrived(&s);
+            got.push(s);
+            if done {
+                break;
+            }
+        }
+        got
+    }
+
+    /// [`receive_until`] the fault stamped `time` (the last fix's) arrives,
+    /// within 30 s.
+    pub async fn receive_until_fault(sub: &Outputs, time: &str) -> Vec<Sample> {
+        receive_until(sub, Duration::from_secs(30), |s| {
+            fault_of(s).is_some_and(|f| f.time == time)
+        })
+        .await
     }
 
     /// Publishes a vessel's messages in order through `session`, once the

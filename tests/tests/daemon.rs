@@ -11,7 +11,8 @@ use tokio_util::sync::CancellationToken;
 use twin_core::diagnose::MonitorConfig;
 use twin_tests::net::{config, free_port};
 use twin_tests::wire::{
-    Messages, messages, offline, scenario as scenario_file, simulate as scenario,
+    Messages, messages, offline, receive_until_fault, scenario as scenario_file,
+    simulate as scenario,
 };
 use twin_wire::outputs::{FaultMessage, FindingsMessage, StateMessage};
 use twind::settings::Settings;
@@ -103,30 +104,6 @@ fn states(samples: &[zenoh::sample::Sample]) -> Vec<StateMessage> {
         .filter(|s| s.key_expr().as_str().ends_with("/twin/state"))
         .map(|s| serde_json::from_slice(&s.payload().to_bytes()).unwrap())
         .collect()
-}
-
-/// Receives a vessel's outputs until the fault of its last fix (stamped
-/// `last_fault_time`) has arrived, for at most 30 s; every sample received.
-/// On a loaded machine the daemon can still be working through its queue
-/// when the publisher is done, and stopping it then cuts off the last
-/// fixes' outputs (a fixed pause before stopping raced with that). If the
-/// fault never comes, the comparisons that follow fail.
-async fn receive_until_fault(
-    sub: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
-    last_fault_time: &str,
-) -> Vec<zenoh::sample::Sample> {
-    let deadline = tokio::time::Instant::now() + Duration::from_secs(30);
-    let mut got = Vec::new();
-    while let Ok(Ok(s)) = tokio::time::timeout_at(deadline, sub.recv_async()).await {
-        let is_last = s.key_expr().as_str().ends_with("/twin/fault")
-            && serde_json::from_slice::<FaultMessage>(&s.payload().to_bytes())
-                .is_ok_and(|f| f.time == last_fault_time);
-        got.push(s);
-        if is_last {
-            break;
-        }
-    }
-    got
 }
 
 fn drain(

@@ -6,7 +6,9 @@ use std::time::{Duration, Instant};
 
 use tokio_util::sync::CancellationToken;
 use twin_tests::net::{config, free_port};
-use twin_tests::wire::{messages, offline, publish, simulate};
+use twin_tests::wire::{
+    fault_of, messages, offline, publish, receive_until, receive_until_fault, simulate,
+};
 use twin_wire::outputs::FaultMessage;
 use twind::settings::Settings;
 
@@ -74,8 +76,14 @@ async fn the_daemon_reconnects_when_the_router_restarts() {
         "clients reconnected and the stream resumed {:.1} s after the router came back",
         reconnected.elapsed().as_secs_f64()
     );
-    tokio::time::sleep(Duration::from_millis(800)).await;
-    let after = last_fault(&sub).expect("outputs after the restart");
+    let expected = offline_fault(&msgs);
+    let received = receive_until_fault(&sub, &expected.time).await;
+    let after = received
+        .iter()
+        .filter_map(fault_of)
+        .chain(last_fault(&sub))
+        .last()
+        .expect("outputs after the restart");
     cancel.cancel();
     let summary = tokio::time::timeout(Duration::from_secs(20), handle)
         .await
@@ -85,7 +93,6 @@ async fn the_daemon_reconnects_when_the_router_restarts() {
 
     // Nothing corrupted: the estimate is exactly the offline one over the
     // whole trial (no message was published while the router was down).
-    let expected = offline_fault(&msgs);
     println!(
         "before the restart: port {:?}; after: port {:?}; offline {:?}",
         before.thrusters.port.loss, after.thrusters.port.loss, expected.thrusters.port.loss
@@ -133,7 +140,20 @@ async fn two_daemons_share_a_fleet_by_key_expression() {
         publish(&input, vessel, &msgs).await;
         expected.push((vessel, offline_fault(&msgs)));
     }
-    tokio::time::sleep(Duration::from_millis(800)).await;
+    // Every vessel's last fault (stamped with its last fix's time), or 30 s.
+    let mut awaited: std::collections::HashMap<&str, String> = expected
+        .iter()
+        .map(|(vessel, e)| (*vessel, e.time.clone()))
+        .collect();
+    let received = receive_until(&sub, Duration::from_secs(30), |s| {
+        if let Some(f) = fault_of(s)
+            && awaited.get(f.vessel.as_str()) == Some(&f.time)
+        {
+            awaited.remove(f.vessel.as_str());
+        }
+        awaited.is_empty()
+    })
+    .await;
     cancel.cancel();
     let sn = tokio::time::timeout(Duration::from_secs(20), hn)
         .await
@@ -154,7 +174,11 @@ async fn two_daemons_share_a_fleet_by_key_expression() {
     // Each vessel's last fault message came from exactly one daemon, with
     // its own estimate.
     let mut last: std::collections::HashMap<String, FaultMessage> = Default::default();
+    let mut late = Vec::new();
     while let Ok(Some(s)) = sub.try_recv() {
+        late.push(s);
+    }
+    for s in received.iter().chain(&late) {
         let f: FaultMessage = serde_json::from_slice(&s.payload().to_bytes()).unwrap();
         last.insert(f.vessel.clone(), f);
     }
