@@ -81,6 +81,35 @@ pub trait Model<const N: usize, const M: usize, const P: usize> {
         dt_s: f64,
     ) -> Transition<N, P>;
 
+    /// The next state alone, without the derivatives: what a forecast of
+    /// states needs (the diagnosis's held-out forecasts). Equal to
+    /// `transition(..).next`, which the default computes; a model whose
+    /// derivatives are dear skips them.
+    fn propagate(
+        &self,
+        x: &SVector<f64, N>,
+        input: &Self::Input,
+        theta: &SVector<f64, P>,
+        dt_s: f64,
+    ) -> SVector<f64, N> {
+        self.transition(x, input, theta, dt_s).next
+    }
+
+    /// The transition a forecast's covariance is propagated with: the same
+    /// next state as [`Model::transition`], and derivatives that may be a
+    /// coarser approximation over the step (a forecast's uncertainty band
+    /// needs them to a fraction of a per cent over its 1 s steps, not to the
+    /// filter's precision). The default is `transition`.
+    fn forecast_transition(
+        &self,
+        x: &SVector<f64, N>,
+        input: &Self::Input,
+        theta: &SVector<f64, P>,
+        dt_s: f64,
+    ) -> Transition<N, P> {
+        self.transition(x, input, theta, dt_s)
+    }
+
     /// The measurement the model expects in state `x`.
     fn observe(&self, x: &SVector<f64, N>) -> Observation<N, M>;
 

@@ -41,6 +41,7 @@ impl<const N: usize> PredictedPoint<N> {
 
 /// Predicts from `state` (taken at `start_time_s`) through the given inputs,
 /// each applied for its `dt_s`, with process noise density `q_density`.
+/// Each step uses the model's [`Model::forecast_transition`].
 /// Returns one point per input, at the end of its interval. Stops early at
 /// the first step that produces a non-finite state.
 pub fn predict<Mdl, const N: usize, const M: usize, const P: usize>(
@@ -64,7 +65,7 @@ where
         if !(dt_s > 0.0 && dt_s.is_finite()) {
             break;
         }
-        let tr = model.transition(&x, &input, &theta, dt_s);
+        let tr = model.forecast_transition(&x, &input, &theta, dt_s);
         if tr.next.iter().any(|v| !v.is_finite()) {
             break;
         }
@@ -89,6 +90,36 @@ where
             x,
             covariance: p_xx,
         });
+    }
+    out
+}
+
+/// The states alone of [`predict`] (no covariance, no derivatives): from
+/// `state`'s estimate with its faults frozen, one `(time, state)` per input,
+/// each applied for its `dt_s`. Stops early like [`predict`].
+pub fn predict_states<Mdl, const N: usize, const M: usize, const P: usize>(
+    model: &Mdl,
+    state: &AekfState<N, M, P>,
+    start_time_s: f64,
+    inputs: impl IntoIterator<Item = (f64, Mdl::Input)>,
+) -> Vec<(f64, SVector<f64, N>)>
+where
+    Mdl: Model<N, M, P>,
+{
+    let mut x = state.x;
+    let mut time_s = start_time_s;
+    let mut out = Vec::new();
+    for (dt_s, input) in inputs {
+        if !(dt_s > 0.0 && dt_s.is_finite()) {
+            break;
+        }
+        let next = model.propagate(&x, &input, &state.theta, dt_s);
+        if next.iter().any(|v| !v.is_finite()) {
+            break;
+        }
+        x = next;
+        time_s += dt_s;
+        out.push((time_s, x));
     }
     out
 }

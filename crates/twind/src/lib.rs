@@ -185,8 +185,8 @@ pub async fn run_with_tap(
                 s = subscriber.recv_async() => match s { Ok(s) => s, Err(_) => break },
             }
         };
-        let key = sample.key_expr().as_str().to_string();
-        let (id, topic) = match settings.keys.parse(&key) {
+        let key = sample.key_expr().as_str();
+        let (id, topic) = match settings.keys.parse(key) {
             Ok(parsed) => parsed,
             Err(e) => {
                 summary
@@ -198,7 +198,7 @@ pub async fn run_with_tap(
         if !matches!(topic, Topic::Gnss | Topic::Nmea | Topic::Actuators) {
             summary
                 .refused
-                .reject(id.as_str(), "not_an_input_topic", &key);
+                .reject(id.as_str(), "not_an_input_topic", &key.to_string());
             continue;
         }
         let len = sample.payload().len();
@@ -208,26 +208,32 @@ pub async fn run_with_tap(
                 detail: format!("{len} bytes on {key}, limit {}", settings.max_payload_bytes),
             }
         } else {
+            // A copy: a payload handed on as Zenoh's own buffer would keep
+            // the receive buffer it lies in from being recycled while it
+            // waits in a vessel's queue, and with enough of them queued the
+            // session stops reading (seen as a stalled test with several
+            // daemons in one process).
             VesselEvent::Payload {
                 topic,
                 bytes: sample.payload().to_bytes().into_owned(),
             }
         };
-        let vessel = id.as_str().to_string();
-        let tx = match vessels.get(&vessel).filter(|tx| !tx.is_closed()) {
+        // Looked up by the borrowed id: no allocation for a known vessel.
+        let tx = match vessels.get(id.as_str()).filter(|tx| !tx.is_closed()) {
             Some(tx) => tx.clone(),
             None => {
                 if vessels.len() >= settings.vessels.max_vessels {
                     summary.refused.reject(
-                        &vessel,
+                        id.as_str(),
                         "too_many_vessels",
                         &settings.vessels.max_vessels,
                     );
                     continue;
                 }
+                let vessel = id.as_str().to_string();
                 let (tx, rx) = mpsc::channel(settings.vessels.queue_depth);
                 let task = VesselTask::new(
-                    id,
+                    id.clone(),
                     settings.clone(),
                     session.clone(),
                     latest.clone(),
@@ -240,7 +246,7 @@ pub async fn run_with_tap(
                     let counters = task.run(rx).await;
                     let _ = done.send((name, counters));
                 });
-                vessels.insert(vessel.clone(), tx.clone());
+                vessels.insert(vessel, tx.clone());
                 tx
             }
         };
@@ -248,7 +254,7 @@ pub async fn run_with_tap(
         // Waits while the vessel's queue is full: back-pressure, not loss.
         if tx.send(event).await.is_err() {
             summary.refused.reject(
-                &vessel,
+                id.as_str(),
                 "vessel_task_ended",
                 &"the task ended before the message",
             );

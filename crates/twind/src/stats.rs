@@ -24,7 +24,13 @@ pub struct Counters {
 impl Counters {
     /// Counts an accepted message.
     pub fn accept(&mut self, what: &str) {
-        *self.accepted.entry(what.to_string()).or_default() += 1;
+        // Allocates the name only the first time (every message comes here).
+        match self.accepted.get_mut(what) {
+            Some(n) => *n += 1,
+            None => {
+                self.accepted.insert(what.to_string(), 1);
+            }
+        }
     }
 
     /// Counts a rejection and logs it, rate-limited.

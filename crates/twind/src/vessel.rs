@@ -308,65 +308,68 @@ impl VesselTask {
             VesselEvent::Refused { reason, detail } => {
                 self.counters.reject(self.id.as_str(), reason, &detail)
             }
-            VesselEvent::Payload { topic, bytes } => match topic {
-                Topic::Gnss => match decode_gnss_limited(&bytes, self.settings.max_payload_bytes) {
+            VesselEvent::Payload { topic, bytes } => self.handle_payload(topic, &bytes, p).await,
+        }
+    }
+
+    async fn handle_payload(&mut self, topic: Topic, bytes: &[u8], p: &OutputKeys) {
+        match topic {
+            Topic::Gnss => match decode_gnss_limited(bytes, self.settings.max_payload_bytes) {
+                Ok(d) => {
+                    self.replay = d.replay;
+                    self.counters.accept("gnss");
+                    self.on_fix(&d.value, p).await;
+                }
+                Err(e) => self.counters.reject(self.id.as_str(), e.reason(), &e),
+            },
+            Topic::Actuators => {
+                match decode_actuators_limited(bytes, self.settings.max_payload_bytes) {
                     Ok(d) => {
                         self.replay = d.replay;
-                        self.counters.accept("gnss");
-                        self.on_fix(&d.value, p).await;
+                        self.counters.accept("actuators");
+                        self.on_command(d.value);
                     }
                     Err(e) => self.counters.reject(self.id.as_str(), e.reason(), &e),
-                },
-                Topic::Actuators => {
-                    match decode_actuators_limited(&bytes, self.settings.max_payload_bytes) {
-                        Ok(d) => {
-                            self.replay = d.replay;
-                            self.counters.accept("actuators");
-                            self.on_command(d.value);
-                        }
-                        Err(e) => self.counters.reject(self.id.as_str(), e.reason(), &e),
-                    }
                 }
-                Topic::Nmea => {
-                    self.counters.accept("nmea");
-                    let mut items = Vec::new();
-                    self.nmea.decode_payload(&bytes, &mut items);
-                    let mut assembled = Vec::new();
-                    for item in items {
-                        match item {
-                            Ok(record) => {
-                                if let (Measurement::SpeedThroughWater { mps }, Some(m)) =
-                                    (&record.measurement, self.monitor.as_mut())
-                                {
-                                    m.push(DiagEvent::SpeedThroughWater {
-                                        time_s: record.time_s,
-                                        mps: *mps,
-                                    });
-                                }
-                                self.assembler.push(record, &mut assembled)
+            }
+            Topic::Nmea => {
+                self.counters.accept("nmea");
+                let mut items = Vec::new();
+                self.nmea.decode_payload(bytes, &mut items);
+                let mut assembled = Vec::new();
+                for item in items {
+                    match item {
+                        Ok(record) => {
+                            if let (Measurement::SpeedThroughWater { mps }, Some(m)) =
+                                (&record.measurement, self.monitor.as_mut())
+                            {
+                                m.push(DiagEvent::SpeedThroughWater {
+                                    time_s: record.time_s,
+                                    mps: *mps,
+                                });
                             }
-                            Err(rejection) => {
-                                let reason = rejection.reason.kind().name();
-                                self.counters.reject(self.id.as_str(), reason, &rejection);
-                            }
+                            self.assembler.push(record, &mut assembled)
                         }
-                    }
-                    for a in assembled {
-                        match a {
-                            Assembled::Fix(fix) => {
-                                self.counters.accept("nmea_fix");
-                                self.on_fix(&fix, p).await;
-                            }
-                            Assembled::Propellers(s) => self.on_command(ActuatorCommand::Speeds(s)),
-                            Assembled::Thrust(t) => self.on_command(ActuatorCommand::Thrust(t)),
+                        Err(rejection) => {
+                            let reason = rejection.reason.kind().name();
+                            self.counters.reject(self.id.as_str(), reason, &rejection);
                         }
                     }
                 }
-                other => {
-                    self.counters
-                        .reject(self.id.as_str(), "not_an_input_topic", &other.suffix())
+                for a in assembled {
+                    match a {
+                        Assembled::Fix(fix) => {
+                            self.counters.accept("nmea_fix");
+                            self.on_fix(&fix, p).await;
+                        }
+                        Assembled::Propellers(s) => self.on_command(ActuatorCommand::Speeds(s)),
+                        Assembled::Thrust(t) => self.on_command(ActuatorCommand::Thrust(t)),
+                    }
                 }
-            },
+            }
+            other => self
+                .counters
+                .reject(self.id.as_str(), "not_an_input_topic", &other.suffix()),
         }
     }
 
@@ -537,7 +540,16 @@ impl VesselTask {
             return;
         };
         if let Ok(mut map) = self.latest.write() {
-            map.insert(self.id.as_str().to_string(), bytes.clone());
+            // The vessel's slot is reused: no allocation once it exists.
+            match map.get_mut(self.id.as_str()) {
+                Some(slot) => {
+                    slot.clear();
+                    slot.extend_from_slice(&bytes);
+                }
+                None => {
+                    map.insert(self.id.as_str().to_string(), bytes.clone());
+                }
+            }
         }
         self.tap_out(Topic::TwinState, &bytes);
         if let Err(e) = self.put(&p.state, bytes).await {

@@ -13,7 +13,7 @@ use crate::model::{Measurement, Model};
 use crate::models::effects::SensorEffects;
 use crate::models::otter_twin::{OtterTwin, ShaftSpeeds, idx as kidx};
 use crate::models::water_kinematic::{WaterKinematic, idx as widx};
-use crate::predict::predict;
+use crate::predict::predict_states;
 use crate::twin::TwinConfig;
 
 /// A candidate cause of what the nominal model gets wrong.
@@ -418,13 +418,8 @@ where
             let inputs = ahead
                 .iter()
                 .map(|j| (steps[*j].time_s - steps[*j - 1].time_s, input(&steps[*j])));
-            let points = predict(
-                &filter.model,
-                &state,
-                &SMatrix::zeros(),
-                step.time_s,
-                inputs,
-            );
+            // States alone: the forecast's covariance is not used here.
+            let points = predict_states(&filter.model, &state, step.time_s, inputs);
             for (h, sq, n) in out.forecast.iter_mut() {
                 let target = step.time_s + *h;
                 if let Some((p, j)) = points
@@ -433,7 +428,7 @@ where
                     .find(|(_, j)| steps[**j].time_s >= target - 1e-9)
                     && steps[*j].time_s - target < 1.0
                 {
-                    let pred = filter.model.observe(&p.x).predicted;
+                    let pred = filter.model.observe(&p.1).predicted;
                     let m = steps[*j].position;
                     *sq += (pred[0] - m.north_m).powi(2) + (pred[1] - m.east_m).powi(2);
                     *n += 1;

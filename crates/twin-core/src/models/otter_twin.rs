@@ -317,6 +317,20 @@ struct Derivatives {
     b: SMatrix<f64, 8, 2>,
 }
 
+/// `exp(h A)` and `int_0^h exp(A s) ds B` to third order in `h A`, from the
+/// derivatives `d` at one point; the products skip the known zeros of `A`.
+#[inline(always)]
+fn exp_third_order(d: &Derivatives, h: f64) -> (SMatrix<f64, 8, 8>, SMatrix<f64, 8, 2>) {
+    let ha = d.a * h;
+    let ha2 = mul_sparse_left(&ha, &A_PATTERN, &ha);
+    let ha3 = mul_sparse_left(&ha, &A_PATTERN, &ha2);
+    let f = SMatrix::<f64, 8, 8>::identity() + ha + ha2 * 0.5 + ha3 * (1.0 / 6.0);
+    let ha_b = mul_sparse_left(&ha, &A_PATTERN, &d.b);
+    let ha2_b = mul_sparse_left(&ha, &A_PATTERN, &ha_b);
+    let b = (d.b + ha_b * 0.5 + ha2_b * (1.0 / 6.0)) * h;
+    (f, b)
+}
+
 impl<const N: usize> OtterTwin<N> {
     /// Propeller thrusts `[port, starboard]`, N.
     pub fn thrusts(&self, input: &ShaftSpeeds) -> Vector2<f64> {
@@ -436,6 +450,28 @@ impl<const N: usize> OtterTwin<N> {
         Derivatives { xdot, a, b: bm }
     }
 
+    /// The number of RK4 sub-steps of a step of `dt_s` from `x0` (whose
+    /// derivative is `xdot_start`), and the longest sub-step allowed.
+    /// The nonlinear yaw damping shortens the yaw time constant to
+    /// M33 / (|N_r| (1 + 2c|r|)) in a hard turn (0.14 s at 17 deg/s): keep
+    /// sub-steps at half of it, and at most [`MAX_SUBSTEP_S`].
+    fn substeps(
+        &self,
+        x0: &SVector<f64, 8>,
+        xdot_start: &SVector<f64, 8>,
+        dt_s: f64,
+    ) -> (usize, f64) {
+        let p = &self.params;
+        let r_start = x0[idx::R];
+        let r_end_euler = r_start + dt_s.min(MAX_SUBSTEP_S) * xdot_start[idx::R];
+        let r_max = r_start.abs().max(r_end_euler.abs());
+        let yaw_tau_s = p.mass_matrix[(2, 2)]
+            / (-p.linear_damping[2] * (1.0 + 2.0 * p.yaw_damping_nonlinear_s * r_max));
+        let max_h = MAX_SUBSTEP_S.min(0.5 * yaw_tau_s);
+        let substeps = (dt_s / max_h).ceil().clamp(1.0, 1000.0) as usize;
+        (substeps, max_h)
+    }
+
     /// One filter step on the 8-state vector.
     fn step8(
         &self,
@@ -445,19 +481,9 @@ impl<const N: usize> OtterTwin<N> {
         dt_s: f64,
     ) -> Transition<8, 2> {
         let thrust = self.thrusts(input);
-        // The nonlinear yaw damping shortens the yaw time constant to
-        // M33 / (|N_r| (1 + 2c|r|)) in a hard turn (0.14 s at 17 deg/s):
-        // keep sub-steps at half of it, and at most MAX_SUBSTEP_S.
-        let p = &self.params;
-        let r_start = x0[idx::R];
         // The derivative at the start, also the first sub-step's k1.
         let xdot_start = self.xdot(x0, &thrust, theta);
-        let r_end_euler = r_start + dt_s.min(MAX_SUBSTEP_S) * xdot_start[idx::R];
-        let r_max = r_start.abs().max(r_end_euler.abs());
-        let yaw_tau_s = p.mass_matrix[(2, 2)]
-            / (-p.linear_damping[2] * (1.0 + 2.0 * p.yaw_damping_nonlinear_s * r_max));
-        let max_h = MAX_SUBSTEP_S.min(0.5 * yaw_tau_s);
-        let substeps = (dt_s / max_h).ceil().clamp(1.0, 1000.0) as usize;
+        let (substeps, _) = self.substeps(x0, &xdot_start, dt_s);
         let h = dt_s / substeps as f64;
         let mut x = *x0;
         let mut f = SMatrix::<f64, 8, 8>::identity();
@@ -472,14 +498,7 @@ impl<const N: usize> OtterTwin<N> {
                 self.xdot(&x, &thrust, theta)
             };
             let mid = self.dynamics(&(x + k1 * (0.5 * h)), &thrust, theta);
-            // The products skip the known zeros of A and of F (the patterns).
-            let ha = mid.a * h;
-            let ha2 = mul_sparse_left(&ha, &A_PATTERN, &ha);
-            let ha3 = mul_sparse_left(&ha, &A_PATTERN, &ha2);
-            let f_sub = SMatrix::<f64, 8, 8>::identity() + ha + ha2 * 0.5 + ha3 * (1.0 / 6.0);
-            let ha_b = mul_sparse_left(&ha, &A_PATTERN, &mid.b);
-            let ha2_b = mul_sparse_left(&ha, &A_PATTERN, &ha_b);
-            let b_sub = (mid.b + ha_b * 0.5 + ha2_b * (1.0 / 6.0)) * h;
+            let (f_sub, b_sub) = exp_third_order(&mid, h);
             if substep == 0 {
                 // F and Psi start as I and 0: the products would copy.
                 psi = b_sub;
@@ -496,6 +515,91 @@ impl<const N: usize> OtterTwin<N> {
         x[idx::PSI] = wrap_pi(x[idx::PSI]);
         Transition {
             next: x,
+            jacobian: f,
+            fault_sensitivity: psi,
+        }
+    }
+
+    /// The state after a step, exactly as [`Self::step8`] computes it, without
+    /// the Jacobians (RK4 on the state derivative alone). When `midpoint`,
+    /// also the derivatives at the step's midpoint: the state after half the
+    /// sub-steps when their number is even, else the middle sub-step's
+    /// second RK stage (its own midpoint, which is the step's).
+    fn propagate8(
+        &self,
+        x0: &SVector<f64, 8>,
+        thrust: &Vector2<f64>,
+        theta: &SVector<f64, 2>,
+        dt_s: f64,
+        midpoint: bool,
+    ) -> (SVector<f64, 8>, Option<Derivatives>, f64) {
+        let xdot_start = self.xdot(x0, thrust, theta);
+        let (substeps, max_h) = self.substeps(x0, &xdot_start, dt_s);
+        let h = dt_s / substeps as f64;
+        let middle = substeps / 2;
+        let mut at_midpoint = None;
+        let mut x = *x0;
+        for substep in 0..substeps {
+            let k1 = if substep == 0 {
+                xdot_start
+            } else if midpoint && substeps % 2 == 0 && substep == middle {
+                let d = self.dynamics(&x, thrust, theta);
+                let k1 = d.xdot;
+                at_midpoint = Some(d);
+                k1
+            } else {
+                self.xdot(&x, thrust, theta)
+            };
+            let x2 = x + k1 * (0.5 * h);
+            let k2 = if midpoint && substeps % 2 == 1 && substep == middle {
+                let d = self.dynamics(&x2, thrust, theta);
+                let k2 = d.xdot;
+                at_midpoint = Some(d);
+                k2
+            } else {
+                self.xdot(&x2, thrust, theta)
+            };
+            let k3 = self.xdot(&(x + k2 * (0.5 * h)), thrust, theta);
+            let k4 = self.xdot(&(x + k3 * h), thrust, theta);
+            x += (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (h / 6.0);
+        }
+        x[idx::PSI] = wrap_pi(x[idx::PSI]);
+        (x, at_midpoint, max_h)
+    }
+
+    /// A forecast's step: the state as [`Self::step8`] (the same numbers),
+    /// and the Jacobians over the whole step from `A` and `B` frozen at the
+    /// step's midpoint: `F = exp(A dt)` and `Psi = int_0^dt exp(A s) ds B`,
+    /// by the third-order expansion over `dt / 2^j` (no longer than a
+    /// sub-step) and `j` doublings. Against the sub-step chain of `step8`
+    /// this drops the variation of `A` within the step (second order in
+    /// `dt`, the midpoint rule): at the forecast's 1 s steps in a hard turn
+    /// the difference is a fraction of a per cent (the test below), for a
+    /// fifth of the derivative evaluations and products.
+    fn forecast_step8(
+        &self,
+        x0: &SVector<f64, 8>,
+        input: &ShaftSpeeds,
+        theta: &SVector<f64, 2>,
+        dt_s: f64,
+    ) -> Transition<8, 2> {
+        let thrust = self.thrusts(input);
+        let (next, mid, max_h) = self.propagate8(x0, &thrust, theta, dt_s, true);
+        let mid = mid.expect("propagate8 evaluates the midpoint when asked");
+        let mut doublings = 0;
+        let mut h = dt_s;
+        while h > max_h && doublings < 30 {
+            h *= 0.5;
+            doublings += 1;
+        }
+        let (mut f, mut psi) = exp_third_order(&mid, h);
+        for _ in 0..doublings {
+            // int_0^2h = int_0^h + exp(A h) int_0^h; exp(2 A h) = exp(A h)^2.
+            psi += mul_sparse_left(&f, &F_PATTERN, &psi);
+            f = mul_sparse_left(&f, &F_PATTERN, &f);
+        }
+        Transition {
+            next,
             jacobian: f,
             fault_sensitivity: psi,
         }
@@ -604,6 +708,27 @@ impl Model<8, 5, 2> for OtterTwin<8> {
         self.step8(x, input, theta, dt_s)
     }
 
+    fn propagate(
+        &self,
+        x: &SVector<f64, 8>,
+        input: &ShaftSpeeds,
+        theta: &SVector<f64, 2>,
+        dt_s: f64,
+    ) -> SVector<f64, 8> {
+        self.propagate8(x, &self.thrusts(input), theta, dt_s, false)
+            .0
+    }
+
+    fn forecast_transition(
+        &self,
+        x: &SVector<f64, 8>,
+        input: &ShaftSpeeds,
+        theta: &SVector<f64, 2>,
+        dt_s: f64,
+    ) -> Transition<8, 2> {
+        self.forecast_step8(x, input, theta, dt_s)
+    }
+
     fn observe(&self, x: &SVector<f64, 8>) -> Observation<8, 5> {
         self.observe8(x)
     }
@@ -625,6 +750,22 @@ impl Model<8, 5, 2> for OtterTwin<8> {
     const OBSERVATION_PATTERN: Pattern<5, 8> = H_PATTERN;
 }
 
+/// The 6-state vector as an 8-state one in still water.
+fn with_zero_current(x: &SVector<f64, 6>) -> SVector<f64, 8> {
+    let mut x8 = SVector::<f64, 8>::zeros();
+    x8.fixed_rows_mut::<6>(0).copy_from(x);
+    x8
+}
+
+/// The 6-state part of an 8-state transition.
+fn leading_transition(t: &Transition<8, 2>) -> Transition<6, 2> {
+    Transition {
+        next: t.next.fixed_rows::<6>(0).into_owned(),
+        jacobian: t.jacobian.fixed_view::<6, 6>(0, 0).into_owned(),
+        fault_sensitivity: t.fault_sensitivity.fixed_rows::<6>(0).into_owned(),
+    }
+}
+
 impl Model<6, 5, 2> for OtterTwin<6> {
     type Input = ShaftSpeeds;
 
@@ -635,20 +776,38 @@ impl Model<6, 5, 2> for OtterTwin<6> {
         theta: &SVector<f64, 2>,
         dt_s: f64,
     ) -> Transition<6, 2> {
-        let mut x8 = SVector::<f64, 8>::zeros();
-        x8.fixed_rows_mut::<6>(0).copy_from(x);
-        let t = self.step8(&x8, input, theta, dt_s);
-        Transition {
-            next: t.next.fixed_rows::<6>(0).into_owned(),
-            jacobian: t.jacobian.fixed_view::<6, 6>(0, 0).into_owned(),
-            fault_sensitivity: t.fault_sensitivity.fixed_rows::<6>(0).into_owned(),
-        }
+        leading_transition(&self.step8(&with_zero_current(x), input, theta, dt_s))
+    }
+
+    fn propagate(
+        &self,
+        x: &SVector<f64, 6>,
+        input: &ShaftSpeeds,
+        theta: &SVector<f64, 2>,
+        dt_s: f64,
+    ) -> SVector<f64, 6> {
+        let (next, _, _) = self.propagate8(
+            &with_zero_current(x),
+            &self.thrusts(input),
+            theta,
+            dt_s,
+            false,
+        );
+        next.fixed_rows::<6>(0).into_owned()
+    }
+
+    fn forecast_transition(
+        &self,
+        x: &SVector<f64, 6>,
+        input: &ShaftSpeeds,
+        theta: &SVector<f64, 2>,
+        dt_s: f64,
+    ) -> Transition<6, 2> {
+        leading_transition(&self.forecast_step8(&with_zero_current(x), input, theta, dt_s))
     }
 
     fn observe(&self, x: &SVector<f64, 6>) -> Observation<6, 5> {
-        let mut x8 = SVector::<f64, 8>::zeros();
-        x8.fixed_rows_mut::<6>(0).copy_from(x);
-        let o = self.observe8(&x8);
+        let o = self.observe8(&with_zero_current(x));
         Observation {
             predicted: o.predicted,
             jacobian: o.jacobian.fixed_columns::<6>(0).into_owned(),
@@ -755,21 +914,21 @@ mod tests {
     /// Worst absolute difference between the step's Jacobians and central
     /// finite differences of the step itself.
     fn step_jacobian_errors(dt: f64) -> (f64, f64) {
+        let x = &state();
         let twin = OtterTwin::<8>::default();
         let u = ShaftSpeeds {
             port_radps: 80.0,
             starboard_radps: 70.0,
         };
         let theta = SVector::<f64, 2>::new(0.2, 0.0);
-        let x = state();
         let step = |x: &SVector<f64, 8>, th: &SVector<f64, 2>| {
             Model::<8, 5, 2>::transition(&twin, x, &u, th, dt)
         };
-        let t = step(&x, &theta);
+        let t = step(x, &theta);
         let eps = 1e-6;
         let (mut worst_f, mut worst_psi) = (0.0f64, 0.0f64);
         for j in 0..8 {
-            let (mut xp, mut xm) = (x, x);
+            let (mut xp, mut xm) = (*x, *x);
             xp[j] += eps;
             xm[j] -= eps;
             let num = (step(&xp, &theta).next - step(&xm, &theta).next) / (2.0 * eps);
@@ -781,12 +940,44 @@ mod tests {
             let (mut tp, mut tm) = (theta, theta);
             tp[j] += eps;
             tm[j] -= eps;
-            let num = (step(&x, &tp).next - step(&x, &tm).next) / (2.0 * eps);
+            let num = (step(x, &tp).next - step(x, &tm).next) / (2.0 * eps);
             for i in 0..8 {
                 worst_psi = worst_psi.max((num[i] - t.fault_sensitivity[(i, j)]).abs());
             }
         }
         (worst_f, worst_psi)
+    }
+
+    /// The forecast's steps and the state-only steps give exactly the
+    /// filter's next state (the diagnosis and the forecast rely on it),
+    /// for steps of one and of several sub-steps, odd and even, in both
+    /// twins.
+    #[test]
+    fn forecast_and_state_only_steps_give_the_filters_state() {
+        let twin8 = OtterTwin::<8>::default();
+        let twin6 = OtterTwin::<6>::default();
+        let u = ShaftSpeeds {
+            port_radps: 90.0,
+            starboard_radps: 40.0,
+        };
+        let theta = SVector::<f64, 2>::new(0.1, 0.3);
+        let mut hard_turn = state();
+        hard_turn[idx::R] = 0.3;
+        for x in [state(), hard_turn] {
+            for dt in [0.05, 0.2, 0.37, 0.6, 1.0, 2.5] {
+                let filter = Model::<8, 5, 2>::transition(&twin8, &x, &u, &theta, dt);
+                let forecast = Model::<8, 5, 2>::forecast_transition(&twin8, &x, &u, &theta, dt);
+                let alone = Model::<8, 5, 2>::propagate(&twin8, &x, &u, &theta, dt);
+                assert_eq!(forecast.next, filter.next, "dt {dt}");
+                assert_eq!(alone, filter.next, "dt {dt}");
+                let x6 = x.fixed_rows::<6>(0).into_owned();
+                let filter6 = Model::<6, 5, 2>::transition(&twin6, &x6, &u, &theta, dt);
+                let forecast6 = Model::<6, 5, 2>::forecast_transition(&twin6, &x6, &u, &theta, dt);
+                let alone6 = Model::<6, 5, 2>::propagate(&twin6, &x6, &u, &theta, dt);
+                assert_eq!(forecast6.next, filter6.next, "dt {dt}");
+                assert_eq!(alone6, filter6.next, "dt {dt}");
+            }
+        }
     }
 
     /// The Jacobians are exp(h A_mid) to third order, with A taken at the
