@@ -9,8 +9,6 @@
 //! Seconds are `f64`: at today's epoch values (~1.8e9 s) an `f64` resolves about
 //! 0.24 us, far finer than any navigation message.
 
-use std::fmt::Write as _;
-
 /// Seconds in a (non-leap-second) day.
 pub const SECONDS_PER_DAY: i64 = 86_400;
 
@@ -321,26 +319,34 @@ pub fn format_rfc3339(time_s: f64) -> Result<String, TimeError> {
     let date = CivilDate::from_days_since_epoch(days)?;
     let secs = us_of_day / 1_000_000;
     let micros = us_of_day % 1_000_000;
-    let mut out = String::with_capacity(32);
-    // Writing to a String cannot fail.
-    let _ = write!(
-        out,
-        "{:04}-{:02}-{:02}T{:02}:{:02}:{:02}",
-        date.year,
-        date.month,
-        date.day,
-        secs / 3600,
-        (secs / 60) % 60,
-        secs % 60
-    );
-    let mut frac = format!("{micros:06}");
-    while frac.len() > 3 && frac.ends_with('0') {
-        frac.pop();
+    // Digits written into a fixed buffer: this runs for every output
+    // message and every forecast point, and the formatting machinery with
+    // its two allocations was a visible share of the daemon's time.
+    let mut buf = *b"0000-00-00T00:00:00.000000Z";
+    put_digits(&mut buf[0..4], date.year as u64);
+    put_digits(&mut buf[5..7], date.month as u64);
+    put_digits(&mut buf[8..10], date.day as u64);
+    put_digits(&mut buf[11..13], (secs / 3600) as u64);
+    put_digits(&mut buf[14..16], ((secs / 60) % 60) as u64);
+    put_digits(&mut buf[17..19], (secs % 60) as u64);
+    put_digits(&mut buf[20..26], micros as u64);
+    // Trailing zeros of the fraction trimmed, down to milliseconds.
+    let mut end = 26;
+    while end > 23 && buf[end - 1] == b'0' {
+        end -= 1;
     }
-    out.push('.');
-    out.push_str(&frac);
-    out.push('Z');
-    Ok(out)
+    buf[end] = b'Z';
+    let text = std::str::from_utf8(&buf[..=end]).expect("ASCII digits and separators");
+    Ok(text.to_string())
+}
+
+/// Writes `value` as decimal digits filling `out`, zero-padded (`value` must
+/// fit: the callers' fields are range-checked).
+fn put_digits(out: &mut [u8], mut value: u64) {
+    for d in out.iter_mut().rev() {
+        *d = b'0' + (value % 10) as u8;
+        value /= 10;
+    }
 }
 
 /// Parses an NMEA 0183 time of day `hhmmss` or `hhmmss.ss...` to seconds

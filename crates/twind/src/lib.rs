@@ -6,6 +6,7 @@
 //! - [`vessel`]: one task per vessel owning that vessel's twin.
 //! - [`demo`]: `twind --demo`, the daemon with bundled trials replayed
 //!   through an embedded peer.
+//! - [`forecast`]: the forecast threads, off the fault path.
 //! - [`persist`]: calibration files saved and restored per vessel.
 //! - [`stats`]: counting and rate-limited logging of rejections.
 //! - [`run`] (here): the dispatcher: one Zenoh subscriber for every input
@@ -28,6 +29,7 @@
 //! plain names are refused and counted by the daemon.
 
 pub mod demo;
+pub mod forecast;
 pub mod persist;
 pub mod settings;
 pub mod stats;
@@ -119,6 +121,8 @@ pub async fn run_with_tap(
         .map_err(|e| anyhow::anyhow!("cannot declare the queryable {state_key}: {e}"))?;
     tracing::info!(inputs = %input_key_expr(&settings), "twind running");
 
+    let forecaster = crate::forecast::Forecaster::start(settings.publish.forecast_threads)
+        .map_err(|e| anyhow::anyhow!("cannot start the forecast threads: {e}"))?;
     let tracker = TaskTracker::new();
     let (done_tx, mut done_rx) = mpsc::unbounded_channel::<(String, Counters)>();
     let mut vessels: HashMap<String, mpsc::Sender<VesselEvent>> = HashMap::new();
@@ -239,6 +243,7 @@ pub async fn run_with_tap(
                     latest.clone(),
                     tap.clone(),
                     diagnose_slots.clone(),
+                    forecaster.clone(),
                 );
                 let done = done_tx.clone();
                 let name = vessel.clone();

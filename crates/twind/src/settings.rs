@@ -98,6 +98,7 @@ struct RawPublish {
     prediction_step_s: Option<f64>,
     stats_interval_s: Option<f64>,
     vessel_liveliness: Option<bool>,
+    forecast_threads: Option<usize>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -164,6 +165,10 @@ pub struct PublishSettings {
     /// (`twin-bench daemon` measures both); `twin/state` and its `stale`
     /// flag still say whether a twin runs.
     pub vessel_liveliness: bool,
+    /// Threads computing the forecasts, at a lower scheduling priority than
+    /// the rest of the daemon (see `forecast`); 0 in the file means half the
+    /// cores, at least one.
+    pub forecast_threads: usize,
 }
 
 /// Where calibrations are kept.
@@ -332,6 +337,18 @@ impl Settings {
                 raw.publish.stats_interval_s.unwrap_or(5.0),
             )?,
             vessel_liveliness: raw.publish.vessel_liveliness.unwrap_or(true),
+            forecast_threads: match raw.publish.forecast_threads.unwrap_or(0) {
+                0 => std::thread::available_parallelism()
+                    .map(|n| (n.get() / 2).max(1))
+                    .unwrap_or(1),
+                n if n > 256 => {
+                    return Err(SettingsError::Invalid {
+                        key: "publish.forecast_threads",
+                        reason: format!("{n} threads: at most 256"),
+                    });
+                }
+                n => n,
+            },
         };
         if publish.prediction_horizon_s / publish.prediction_step_s > 3600.0 {
             return Err(SettingsError::Invalid {

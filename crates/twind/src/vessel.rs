@@ -7,7 +7,9 @@
 //! - the estimator steps on message time; every rejection is counted with a
 //!   typed reason and leaves the estimate as it was (the twin guarantees it);
 //! - state and fault are published on every accepted fix, a forecast each
-//!   `prediction_interval_s` of message time, an alarm on every status change;
+//!   `prediction_interval_s` of message time (computed on the forecast
+//!   threads, at most one in flight per vessel: [`crate::forecast`]), an
+//!   alarm on every status change;
 //! - with no fix for `stale_after_s` (wall clock) the state is published again
 //!   marked `stale` while the forecast keeps running from the last fix;
 //! - after `drop_after_silence_s` without any message the task saves the
@@ -36,8 +38,8 @@ use twin_wire::measurement::Measurement;
 use twin_wire::measurement::ThrustCommand;
 use twin_wire::messages::{ActuatorCommand, decode_actuators_limited, decode_gnss_limited};
 use twin_wire::outputs::{
-    AlarmMessage, FaultMessage, FindingJson, FindingsMessage, PredictionMessage, StateMessage,
-    StatsMessage, payload_time,
+    AlarmMessage, FaultMessage, FindingJson, FindingsMessage, StateMessage, StatsMessage,
+    payload_time,
 };
 use twin_wire::read::{NmeaDecoder, ReadOptions};
 use twin_wire::{Topic, VesselId};
@@ -45,6 +47,7 @@ use zenoh::Session;
 use zenoh::key_expr::KeyExpr;
 use zenoh::qos::CongestionControl;
 
+use crate::forecast::{ForecastJob, Forecaster};
 use crate::persist;
 use crate::settings::Settings;
 use crate::stats::Counters;
@@ -105,6 +108,12 @@ pub struct VesselTask {
     diagnose_slots: Arc<Semaphore>,
     diagnosis: Option<oneshot::Receiver<Option<FindingsMessage>>>,
     published_causes: Option<Vec<String>>,
+    forecaster: Forecaster,
+    /// The forecast being computed on the forecast threads, if any.
+    forecast: Option<oneshot::Receiver<Option<Vec<u8>>>>,
+    /// A forecast fell due while one was being computed: ask again when it
+    /// is out.
+    forecast_wanted: bool,
 }
 
 /// Diagnoses `events` (blocking: call it on a blocking thread) and says
@@ -145,6 +154,7 @@ impl VesselTask {
         latest: LatestStates,
         tap: OutputTap,
         diagnose_slots: Arc<Semaphore>,
+        forecaster: Forecaster,
     ) -> Self {
         let mut twin =
             VesselTwin::new(settings.twin).expect("the settings' twin configuration was validated");
@@ -187,6 +197,9 @@ impl VesselTask {
             diagnose_slots,
             diagnosis: None,
             published_causes: None,
+            forecaster,
+            forecast: None,
+            forecast_wanted: false,
         }
     }
 
@@ -236,6 +249,20 @@ impl VesselTask {
                     self.diagnosis = None;
                     if let Some(findings) = done {
                         self.publish_findings(findings, &outputs).await;
+                    }
+                }
+                json = async {
+                    match self.forecast.as_mut() {
+                        Some(rx) => rx.await.ok().flatten(),
+                        None => std::future::pending().await,
+                    }
+                }, if self.forecast.is_some() => {
+                    self.forecast = None;
+                    if let Some(json) = json {
+                        self.publish_prediction(json, &outputs).await;
+                    }
+                    if std::mem::take(&mut self.forecast_wanted) {
+                        self.request_forecast();
                     }
                 }
                 ev = rx.recv() => match ev {
@@ -499,7 +526,7 @@ impl VesselTask {
             .is_none_or(|last| t - last >= self.settings.publish.prediction_interval_s - 1e-9);
         if due {
             self.last_prediction_time_s = Some(t);
-            self.publish_prediction(p).await;
+            self.request_forecast();
         }
     }
 
@@ -514,25 +541,35 @@ impl VesselTask {
         self.put_json(Topic::TwinAlarm, &p.alarm, &alarm).await;
     }
 
-    async fn publish_prediction(&self, p: &OutputKeys) {
-        let Some(state) = self.twin.state_report() else {
+    /// Asks the forecast threads for a forecast from the twin as it is now,
+    /// or, while one is being computed, for another as soon as that one is
+    /// out (see [`crate::forecast`]).
+    fn request_forecast(&mut self) {
+        if self.forecast.is_some() {
+            self.forecast_wanted = true;
             return;
-        };
+        }
         let s = &self.settings.publish;
-        let points = self
-            .twin
-            .forecast(s.prediction_horizon_s, s.prediction_step_s);
-        let msg = PredictionMessage::new(
-            self.id.as_str(),
-            state.time_s,
-            s.prediction_horizon_s,
-            s.prediction_step_s,
-            state.source,
-            &points,
-            self.replay,
-        );
-        self.put_json(Topic::TwinPrediction, &p.prediction, &msg)
-            .await;
+        let (reply, answer) = oneshot::channel();
+        let job = ForecastJob {
+            twin: Box::new(self.twin.clone()),
+            vessel: self.id.as_str().to_string(),
+            horizon_s: s.prediction_horizon_s,
+            step_s: s.prediction_step_s,
+            replay: self.replay,
+            reply,
+        };
+        match self.forecaster.submit(job) {
+            Ok(()) => self.forecast = Some(answer),
+            Err(_) => tracing::error!(vessel = self.id.as_str(), "the forecast threads have ended"),
+        }
+    }
+
+    async fn publish_prediction(&self, json: Vec<u8>, p: &OutputKeys) {
+        self.tap_out(Topic::TwinPrediction, &json);
+        if let Err(e) = self.put(&p.prediction, json).await {
+            tracing::warn!(key = %p.prediction, "not published: {e}");
+        }
     }
 
     async fn put_state(&self, state: &StateMessage, p: &OutputKeys) {
@@ -609,7 +646,7 @@ impl VesselTask {
             );
             self.stale_published = true;
             self.publish_state_and_fault(p, true).await;
-            self.publish_prediction(p).await;
+            self.request_forecast();
         }
     }
 

@@ -63,7 +63,9 @@ pub fn thread_ticks() -> BTreeMap<u32, (String, u64)> {
 }
 
 /// Which part of the benchmark a thread belongs to, from its name: the
-/// daemon's tokio workers (`twind-rt`), the load generator (`bench-gen`),
+/// daemon's tokio workers (`twind-rt`), its forecast threads
+/// (`twind-forecast-N`, cut to 15 characters by the kernel), the load
+/// generator (`bench-gen`),
 /// Zenoh's own runtimes (`rx-0`, `tx-0`, `net-0`, `app-0`, `acc-0`: shared by
 /// every session of the process; they also run the subscriber's callback),
 /// or anything else (the main thread, blocking pools).
@@ -71,6 +73,7 @@ pub fn thread_group(name: &str) -> &'static str {
     let base = name.trim_end_matches(|c: char| c.is_ascii_digit() || c == '-');
     match base {
         "twind-rt" => "daemon (twind's tokio workers)",
+        "twind-forecast" => "daemon (forecast threads, nice 10)",
         "bench-gen" => "load generator",
         "rx" | "tx" | "net" | "app" | "acc" => "Zenoh runtimes (all sessions, subscriber callback)",
         _ => "other",
@@ -107,6 +110,10 @@ mod tests {
         assert_eq!(thread_group("rx-1"), thread_group("tx-0"));
         assert_eq!(thread_group("twind-rt"), "daemon (twind's tokio workers)");
         assert_eq!(thread_group("bench-gen"), "load generator");
+        assert_eq!(
+            thread_group("twind-forecast-"),
+            "daemon (forecast threads, nice 10)"
+        );
         assert_eq!(thread_group("twin-bench"), "other");
     }
 
