@@ -136,7 +136,7 @@ impl DaemonOptions {
                 window_s: 10.0,
                 warmup_s: 1.5,
                 grace_s: 1.0,
-                ramp_steps: 2,
+                ramp_steps: 3,
                 ramp_window_s: 4.0,
                 saturation_vessels: HEADLINE_VESSELS,
                 saturation_window_s: 3.0,
