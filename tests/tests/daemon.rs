@@ -14,7 +14,7 @@ use twin_tests::wire::{
     Messages, messages, offline, receive_until_fault, scenario as scenario_file,
     simulate as scenario,
 };
-use twin_wire::outputs::{FaultMessage, FindingsMessage, StateMessage};
+use twin_wire::outputs::{FaultMessage, FindingsMessage, PredictionMessage, StateMessage};
 use twind::settings::Settings;
 use zenoh::Session;
 
@@ -153,6 +153,72 @@ async fn a_replayed_trial_gives_the_daemon_the_offline_estimates() {
     let counters = &summary.vessels["otter-1"];
     assert_eq!(counters.accepted["gnss"] as usize, fixes);
     assert_eq!(counters.total_rejected(), 0, "{:?}", counters.rejected);
+    // Forecasts (computed on the forecast threads) come in order, and the
+    // last one is the offline twin's forecast from the same messages.
+    let predictions = predictions(&samples);
+    assert!(!predictions.is_empty(), "no prediction");
+    let starts: Vec<f64> = predictions
+        .iter()
+        .map(|p| twin_wire::time::parse_rfc3339(&p.start).unwrap())
+        .collect();
+    assert!(starts.windows(2).all(|w| w[0] < w[1]), "{starts:?}");
+    let last = predictions.last().unwrap();
+    let offline = offline_predictions(&msgs, *starts.last().unwrap());
+    assert!(
+        offline.contains(last),
+        "the last prediction ({}) is none of the {} offline forecasts from its fix",
+        last.start,
+        offline.len()
+    );
+}
+
+fn predictions(samples: &[zenoh::sample::Sample]) -> Vec<PredictionMessage> {
+    samples
+        .iter()
+        .filter(|s| s.key_expr().as_str().ends_with("/twin/prediction"))
+        .map(|s| serde_json::from_slice(&s.payload().to_bytes()).unwrap())
+        .collect()
+}
+
+/// The forecasts the offline twin gives, with the daemon's default horizon
+/// and step, after each prefix of `msgs` whose last fix is at `start_s`:
+/// the daemon asks for one right after a fix, or, when one was still being
+/// computed, as soon as that one is out, possibly after shaft speeds that
+/// came since.
+fn offline_predictions(msgs: &[(&'static str, Vec<u8>)], start_s: f64) -> Vec<PredictionMessage> {
+    let settings = Settings::default();
+    let (horizon, step) = (
+        settings.publish.prediction_horizon_s,
+        settings.publish.prediction_step_s,
+    );
+    let mut twin = twin_core::twin::VesselTwin::new(settings.twin).unwrap();
+    let mut candidates = Vec::new();
+    for (topic, bytes) in msgs {
+        if *topic == "gnss" {
+            let _ = twin.on_gnss(&twin_wire::messages::decode_gnss(bytes).unwrap().value);
+        } else if let twin_wire::messages::ActuatorCommand::Speeds(s) =
+            twin_wire::messages::decode_actuators(bytes).unwrap().value
+        {
+            let _ = twin.on_propellers(&s);
+        }
+        let Some(state) = twin.state_report() else {
+            continue;
+        };
+        if state.time_s == start_s {
+            candidates.push(PredictionMessage::new(
+                "otter-1",
+                state.time_s,
+                horizon,
+                step,
+                state.source,
+                &twin.forecast(horizon, step),
+                true,
+            ));
+        } else if state.time_s > start_s {
+            break;
+        }
+    }
+    candidates
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -20,7 +20,8 @@
 //!   blocking thread (at most `diagnose.max_concurrent` across the daemon)
 //!   and publishes `twin/finding` when the named causes change;
 //! - on shutdown (its channel closed by the dispatcher) it handles what is
-//!   queued, publishes a last state and fault, saves the calibration, and
+//!   queued, publishes the forecast being computed (and one more if one fell
+//!   due meanwhile), a last state and fault, saves the calibration, and
 //!   ends; its liveliness token goes with it.
 
 use std::sync::Arc;
@@ -288,6 +289,17 @@ impl VesselTask {
                         self.save();
                     }
                 }
+            }
+        }
+        // A forecast still being computed is published, and one that fell
+        // due meanwhile is made: what the twin computed is not lost (a
+        // replay's last forecast included).
+        while let Some(answer) = self.forecast.take() {
+            if let Ok(Some(json)) = answer.await {
+                self.publish_prediction(json, &outputs).await;
+            }
+            if std::mem::take(&mut self.forecast_wanted) {
+                self.request_forecast();
             }
         }
         // Last words: state, fault and statistics, then the calibration.
