@@ -770,11 +770,13 @@ impl DaemonReport {
                 "Daemon settings: `config/twind.toml` defaults except `[diagnose] enabled = false` \
                  (the live diagnose, seconds of CPU per vessel every few minutes on a blocking thread, \
                  is off for this benchmark). Predictions at their defaults: a {} s forecast at {} s steps \
-                 every {} s of message time per vessel; state and fault on every fix; vessel queue depth {}; \
-                 publishers `CongestionControl::Block`.",
+                 every {} s of message time per vessel, computed on {} forecast thread(s) at nice 10, \
+                 at most one in flight per vessel (on a saturated machine they come less often); \
+                 state and fault on every fix; vessel queue depth {}; publishers `CongestionControl::Block`.",
                 st.publish.prediction_horizon_s,
                 st.publish.prediction_step_s,
                 st.publish.prediction_interval_s,
+                st.publish.forecast_threads,
                 st.vessels.queue_depth
             ));
             notes.push(if st.publish.vessel_liveliness {
