@@ -98,12 +98,20 @@ fn last_fault(samples: &[zenoh::sample::Sample]) -> FaultMessage {
     serde_json::from_slice(&s.payload().to_bytes()).unwrap()
 }
 
-fn states(samples: &[zenoh::sample::Sample]) -> Vec<StateMessage> {
+/// Every output on the twin topic ending in `suffix`, decoded.
+fn outputs<T: serde::de::DeserializeOwned>(
+    samples: &[zenoh::sample::Sample],
+    suffix: &str,
+) -> Vec<T> {
     samples
         .iter()
-        .filter(|s| s.key_expr().as_str().ends_with("/twin/state"))
+        .filter(|s| s.key_expr().as_str().ends_with(suffix))
         .map(|s| serde_json::from_slice(&s.payload().to_bytes()).unwrap())
         .collect()
+}
+
+fn states(samples: &[zenoh::sample::Sample]) -> Vec<StateMessage> {
+    outputs(samples, "/twin/state")
 }
 
 fn drain(
@@ -173,11 +181,7 @@ async fn a_replayed_trial_gives_the_daemon_the_offline_estimates() {
 }
 
 fn predictions(samples: &[zenoh::sample::Sample]) -> Vec<PredictionMessage> {
-    samples
-        .iter()
-        .filter(|s| s.key_expr().as_str().ends_with("/twin/prediction"))
-        .map(|s| serde_json::from_slice(&s.payload().to_bytes()).unwrap())
-        .collect()
+    outputs(samples, "/twin/prediction")
 }
 
 /// The forecasts the offline twin gives, with the daemon's default horizon
@@ -445,11 +449,7 @@ async fn the_live_monitor_names_a_hidden_current_and_loss_and_nothing_on_a_clean
     rig.publish("hidden", &hidden_msgs).await;
     rig.publish("clean", &clean_msgs).await;
     let findings = |samples: &[zenoh::sample::Sample]| -> Vec<FindingsMessage> {
-        samples
-            .iter()
-            .filter(|s| s.key_expr().as_str().ends_with("/twin/finding"))
-            .map(|s| serde_json::from_slice(&s.payload().to_bytes()).unwrap())
-            .collect()
+        outputs(samples, "/twin/finding")
     };
     let (mut got_hidden, mut got_clean) = (Vec::new(), Vec::new());
     let deadline = std::time::Instant::now() + Duration::from_secs(120);

@@ -117,6 +117,15 @@ pub struct VesselTask {
     forecast_wanted: bool,
 }
 
+/// The answer of work handed to another thread (a diagnosis, a forecast):
+/// `None` if it gave none or was dropped; pending while nothing is asked.
+async fn answer_of<T>(pending: &mut Option<oneshot::Receiver<Option<T>>>) -> Option<T> {
+    match pending.as_mut() {
+        Some(rx) => rx.await.ok().flatten(),
+        None => std::future::pending().await,
+    }
+}
+
 /// Diagnoses `events` (blocking: call it on a blocking thread) and says
 /// what the daemon publishes: `None` when the events are too few.
 fn diagnose_events(
@@ -241,23 +250,13 @@ impl VesselTask {
         loop {
             tokio::select! {
                 biased;
-                done = async {
-                    match self.diagnosis.as_mut() {
-                        Some(rx) => rx.await.ok().flatten(),
-                        None => std::future::pending().await,
-                    }
-                }, if self.diagnosis.is_some() => {
+                done = answer_of(&mut self.diagnosis), if self.diagnosis.is_some() => {
                     self.diagnosis = None;
                     if let Some(findings) = done {
                         self.publish_findings(findings, &outputs).await;
                     }
                 }
-                json = async {
-                    match self.forecast.as_mut() {
-                        Some(rx) => rx.await.ok().flatten(),
-                        None => std::future::pending().await,
-                    }
-                }, if self.forecast.is_some() => {
+                json = answer_of(&mut self.forecast), if self.forecast.is_some() => {
                     self.forecast = None;
                     if let Some(json) = json {
                         self.publish_prediction(json, &outputs).await;
