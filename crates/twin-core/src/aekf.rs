@@ -323,7 +323,45 @@ where
     /// One step: consume the measurement `y` taken `dt_s` after the current
     /// estimate, with `input` the input that drove the vessel over that
     /// interval. On success the estimate is replaced; on error it is untouched.
+    ///
+    /// On an x86-64 processor with AVX2 (every one since 2013-2015) the step
+    /// runs in a copy of its code compiled for 256-bit vectors, chosen at run
+    /// time; elsewhere in the baseline build. Both copies compute the same
+    /// numbers bit for bit: Rust neither reorders nor fuses floating-point
+    /// operations, whatever the vector width (see [`crate::simd`]).
     pub fn step(
+        &self,
+        state: &mut AekfState<N, M, P>,
+        input: &Mdl::Input,
+        y: &Measurement<M>,
+        dt_s: f64,
+    ) -> Result<StepReport<M, P>, AekfError> {
+        #[cfg(target_arch = "x86_64")]
+        if crate::simd::avx2_available() {
+            // SAFETY: `step_avx2` requires AVX2 and FMA, and the processor
+            // running this code has both (checked on the line above).
+            #[allow(unsafe_code)]
+            return unsafe { self.step_avx2(state, input, y, dt_s) };
+        }
+        self.step_portable(state, input, y, dt_s)
+    }
+
+    /// [`Self::step`] compiled for AVX2 (the same source, inlined here).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn step_avx2(
+        &self,
+        state: &mut AekfState<N, M, P>,
+        input: &Mdl::Input,
+        y: &Measurement<M>,
+        dt_s: f64,
+    ) -> Result<StepReport<M, P>, AekfError> {
+        self.step_portable(state, input, y, dt_s)
+    }
+
+    /// The step itself, for any processor; inlined into each copy.
+    #[inline(always)]
+    fn step_portable(
         &self,
         state: &mut AekfState<N, M, P>,
         input: &Mdl::Input,
@@ -599,4 +637,116 @@ pub fn forgetting_factors<const P: usize>(
         };
         1.0 - (1.0 - lambda) * excitation.min(1.0)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::models::kinematic::{KinematicInput, KinematicModel};
+    use crate::models::otter_twin::{OtterTwin, ShaftSpeeds, meas};
+    use crate::twin::TwinConfig;
+    use nalgebra::{Vector2, Vector4};
+
+    /// Runs `steps` through [`Aekf::step`] (the AVX2 copy where the processor
+    /// has AVX2) and through the baseline code, and requires every estimate
+    /// and report to agree bit for bit. Returns how many steps succeeded.
+    fn same_bits_both_ways<Mdl: Model<N, M, P>, const N: usize, const M: usize, const P: usize>(
+        filter: &Aekf<Mdl, N, M, P>,
+        start: AekfState<N, M, P>,
+        steps: &[(Mdl::Input, Measurement<M>)],
+        dt_s: f64,
+    ) -> usize {
+        let mut dispatched = start;
+        let mut baseline = start;
+        let mut succeeded = 0;
+        for (k, (u, y)) in steps.iter().enumerate() {
+            let a = filter.step(&mut dispatched, u, y, dt_s);
+            let b = filter.step_portable(&mut baseline, u, y, dt_s);
+            // Debug formatting prints every f64 exactly (shortest round trip),
+            // and tells NaN, -0.0 and 0.0 apart, unlike `==`.
+            assert_eq!(format!("{a:?}"), format!("{b:?}"), "report at step {k}");
+            assert_eq!(
+                format!("{dispatched:?}"),
+                format!("{baseline:?}"),
+                "estimate at step {k}"
+            );
+            succeeded += usize::from(a.is_ok());
+        }
+        succeeded
+    }
+
+    /// The step's AVX2 copy and its baseline copy give the same bits, for the
+    /// seed's model and the extended twin (whose transition is inlined into
+    /// both). On a processor without AVX2 both calls run the baseline, and
+    /// the test says so rather than passing silently.
+    #[test]
+    fn both_copies_of_the_step_give_the_same_bits() {
+        if !crate::simd::avx2_available() {
+            eprintln!("no AVX2 here: both calls run the baseline code");
+        }
+        let seed = TwinConfig::default().seed.filter;
+        let filter = Aekf::new(KinematicModel, seed).unwrap();
+        let start = AekfState::new(
+            &seed,
+            Vector4::new(0.0, 0.0, 1.5, 0.0),
+            SMatrix::identity(),
+            Vector2::zeros(),
+        );
+        let dt = 0.2;
+        let mut x = Vector4::new(0.0, 0.0, 1.5, 0.0);
+        let seed_steps: Vec<_> = (0..400)
+            .map(|k| {
+                let t = k as f64 * dt;
+                let u = KinematicInput {
+                    accel_mps2: 0.05 * (0.3 * t).sin(),
+                    course_rate_radps: 0.3 * (0.1 * t).sin(),
+                };
+                x = Vector4::new(
+                    x[0] + dt * x[2] * x[3].cos(),
+                    x[1] + dt * x[2] * x[3].sin(),
+                    x[2] + dt * 0.9 * u.accel_mps2,
+                    wrap_pi(x[3] + dt * 0.7 * u.course_rate_radps),
+                );
+                let mut y = Measurement::full(x + Vector4::repeat(0.01 * (1.7 * t).sin()));
+                // Some fixes without course, as when the vessel stops.
+                y.available[3] = k % 7 != 3;
+                (u, y)
+            })
+            .collect();
+        assert_eq!(same_bits_both_ways(&filter, start, &seed_steps, dt), 400);
+
+        let kinetic = TwinConfig::default().kinetic;
+        let model = OtterTwin::<8>::new(kinetic.params);
+        let filter = Aekf::new(model, kinetic.filter).unwrap();
+        let mut x0 = SVector::<f64, 8>::zeros();
+        x0[3] = 1.0;
+        let start = AekfState::new(
+            &kinetic.filter,
+            x0,
+            SMatrix::identity() * 0.1,
+            Vector2::zeros(),
+        );
+        let dt = 0.2;
+        let mut truth = x0;
+        let kinetic_steps: Vec<_> = (0..300)
+            .map(|k| {
+                let t = k as f64 * dt;
+                // Full ahead, then a hard turn to port and one to starboard,
+                // with the port propeller at 70 %.
+                let turn = (0.05 * t).sin();
+                let u = ShaftSpeeds {
+                    port_radps: 100.0 * (1.0 - 0.6 * turn.max(0.0)),
+                    starboard_radps: 100.0 * (1.0 + 0.6 * turn.min(0.0)),
+                };
+                truth = model
+                    .transition(&truth, &u, &Vector2::new(0.3, 0.0), dt)
+                    .next;
+                let observed = model.observe(&truth).predicted;
+                let mut y = Measurement::full(observed);
+                y.available[meas::HEADING] = k % 3 == 0;
+                (u, y)
+            })
+            .collect();
+        assert_eq!(same_bits_both_ways(&filter, start, &kinetic_steps, dt), 300);
+    }
 }

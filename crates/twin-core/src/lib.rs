@@ -8,6 +8,7 @@
 //! - [`inputs`]: the seed's inputs derived from GNSS (differences, low-pass).
 //! - [`otter`]: the Otter's parameters and the seed's thrust split (step 4).
 //! - [`linalg`]: small Cholesky factorisation and solves for the filter.
+//! - [`simd`]: which vector width this processor runs the filter's step at.
 //! - [`aekf`]: the adaptive extended Kalman filter, generic over the model.
 //! - [`predict`]: open-loop forecasts with their uncertainty.
 //! - [`decision`]: nominal / suspect / fault per thruster, with hysteresis.
@@ -31,4 +32,5 @@ pub mod models;
 pub mod otter;
 pub mod predict;
 pub mod sample;
+pub mod simd;
 pub mod twin;

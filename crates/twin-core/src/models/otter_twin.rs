@@ -473,6 +473,7 @@ impl<const N: usize> OtterTwin<N> {
     }
 
     /// One filter step on the 8-state vector.
+    #[inline(always)]
     fn step8(
         &self,
         x0: &SVector<f64, 8>,
@@ -698,6 +699,9 @@ const STATE_NAMES: [&str; 8] = [
 impl Model<8, 5, 2> for OtterTwin<8> {
     type Input = ShaftSpeeds;
 
+    // Inlined into the filter's step, so that it runs in the step's AVX2
+    // copy too (see `crate::simd`).
+    #[inline(always)]
     fn transition(
         &self,
         x: &SVector<f64, 8>,
