@@ -247,6 +247,13 @@ pub fn run(opts: &CoreOptions) -> anyhow::Result<CoreReport> {
         }
     }
 
+    let seed_trial = trial::generate(&spec).prepare()?;
+    push_copies_row(
+        &mut rows,
+        "seed",
+        &seed_trial.time_both_copies(reps(opts.rust_repeats)),
+    );
+
     progress("seed step and NumPy");
     // 2. The extended twin, on the bundled demo trial (5 min, GNSS and
     // heading 5 Hz, shaft speeds 10 Hz, port propeller 25 % down).
@@ -264,6 +271,7 @@ pub fn run(opts: &CoreOptions) -> anyhow::Result<CoreReport> {
         "< 1 us",
         t.ns_per_step_median < TARGET_EXTENDED_STEP_NS,
     ));
+    push_copies_row(&mut rows, "extended", &kinetic.time_both_copies(reps(101)));
     let fixes = workloads::fix_count(&demo_inputs);
     let shafts = demo_inputs.len() - fixes;
     let t = workloads::per_item(fixes, reps(31), || {
@@ -436,6 +444,32 @@ fn push_seed_row(rows: &mut Vec<Row>, spec: &TrialSpec, t: &Timing) {
         duration_text(t.ns_per_step_median),
         "< 250 ns",
         t.ns_per_step_median < TARGET_SEED_STEP_NS,
+    ));
+}
+
+/// The step's AVX2 copy against its baseline code, timed alternately in one
+/// run (`twin_core::simd`): how much of the row above the wider vectors
+/// give. Without AVX2 both are the baseline code, and the row says so.
+fn push_copies_row(rows: &mut Vec<Row>, model: &str, [dispatched, baseline]: &[Timing; 2]) {
+    let value = if twin_core::simd::avx2_available() {
+        format!(
+            "{} / {} ({:.2}x)",
+            duration_text(dispatched.ns_per_step_median),
+            duration_text(baseline.ns_per_step_median),
+            baseline.ns_per_step_median / dispatched.ns_per_step_median
+        )
+    } else {
+        format!(
+            "no AVX2 here: {} both",
+            duration_text(baseline.ns_per_step_median)
+        )
+    };
+    rows.push(Row::plain(
+        format!(
+            "  the {model} step's AVX2 copy / baseline x86-64 code, alternating runs ({} each)",
+            dispatched.repeats
+        ),
+        value,
     ));
 }
 

@@ -24,6 +24,7 @@ use twin_core::model::Measurement;
 use twin_core::models::kinematic::{KinematicInput, KinematicModel};
 
 use crate::rng::SplitMix64;
+use crate::workloads::StepCode;
 
 /// The `format` tag of trial files this crate writes and reads.
 pub const TRIAL_FORMAT: &str = "twin-bench/aekf-trial/v1";
@@ -448,22 +449,37 @@ impl Prepared {
     }
 
     /// Runs the whole trial once through `black_box` (what is timed).
-    #[inline(never)]
     pub fn run_once(&self) -> SeedState {
+        self.run_once_in(StepCode::Dispatched)
+    }
+
+    /// Runs the whole trial once in the given copy of the step's code.
+    #[inline(never)]
+    pub fn run_once_in(&self, code: StepCode) -> SeedState {
         let mut est = self.start;
         for s in &self.steps {
-            let r: Result<_, AekfError> = self.filter.step(
-                black_box(&mut est),
-                black_box(&s.input),
-                black_box(&s.y),
-                black_box(s.dt_s),
-            );
+            let (input, y, dt_s) = (black_box(&s.input), black_box(&s.y), black_box(s.dt_s));
+            let r: Result<_, AekfError> = match code {
+                StepCode::Dispatched => self.filter.step(black_box(&mut est), input, y, dt_s),
+                StepCode::Baseline => {
+                    self.filter
+                        .step_baseline(black_box(&mut est), input, y, dt_s)
+                }
+            };
             // By reference: the report stays where the step wrote it (by
             // value, `black_box` would copy its 200 bytes once more and time
             // the copy too).
             black_box(&r);
         }
         black_box(est)
+    }
+
+    /// Times the step's two copies side by side: `repeats` runs of the whole
+    /// trial in each, alternating (after one warm-up run of each).
+    pub fn time_both_copies(&self, repeats: usize) -> [Timing; 2] {
+        crate::workloads::per_item_both_copies(self.steps.len(), repeats, |code| {
+            black_box(self.run_once_in(code));
+        })
     }
 
     /// Times `repeats` runs of the whole trial (after one warm-up run).

@@ -210,16 +210,23 @@ pub fn kinetic_steps(inputs: &[TwinInput], config: TwinConfig) -> anyhow::Result
 impl KineticSteps {
     /// Replays every step once through the filter from the start; the
     /// estimate at the end.
-    #[inline(never)]
     pub fn run_once(&self) -> AekfState<8, 5, 2> {
+        self.run_once_in(StepCode::Dispatched)
+    }
+
+    /// [`Self::run_once`] in the given copy of the step's code.
+    #[inline(never)]
+    pub fn run_once_in(&self, code: StepCode) -> AekfState<8, 5, 2> {
         let mut est = self.start;
         for s in &self.steps {
-            let r = self.filter.step(
-                black_box(&mut est),
-                black_box(&s.input),
-                black_box(&s.y),
-                black_box(s.dt_s),
-            );
+            let (input, y, dt_s) = (black_box(&s.input), black_box(&s.y), black_box(s.dt_s));
+            let r = match code {
+                StepCode::Dispatched => self.filter.step(black_box(&mut est), input, y, dt_s),
+                StepCode::Baseline => {
+                    self.filter
+                        .step_baseline(black_box(&mut est), input, y, dt_s)
+                }
+            };
             black_box(&r);
         }
         black_box(est)
@@ -231,6 +238,46 @@ impl KineticSteps {
             black_box(self.run_once());
         })
     }
+
+    /// Times the step's two copies side by side, alternating replays.
+    pub fn time_both_copies(&self, repeats: usize) -> [Timing; 2] {
+        per_item_both_copies(self.steps.len(), repeats, |code| {
+            black_box(self.run_once_in(code));
+        })
+    }
+}
+
+/// Which compiled copy of the filter's step a benchmark runs
+/// (`twin_core::simd`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepCode {
+    /// `Aekf::step`: the AVX2 copy where the processor has AVX2.
+    Dispatched,
+    /// `Aekf::step_baseline`: the baseline x86-64 code everywhere.
+    Baseline,
+}
+
+/// Times `work` in both copies of the step's code, `repeats` runs each,
+/// alternating so that both see the same state of a shared machine;
+/// `[dispatched, baseline]`.
+pub fn per_item_both_copies(
+    items: usize,
+    repeats: usize,
+    mut work: impl FnMut(StepCode),
+) -> [Timing; 2] {
+    let codes = [StepCode::Dispatched, StepCode::Baseline];
+    let mut ns = [Vec::new(), Vec::new()];
+    for _ in 0..=repeats.max(1) {
+        for (code, times) in codes.iter().zip(ns.iter_mut()) {
+            let t0 = Instant::now();
+            work(*code);
+            times.push(t0.elapsed().as_nanos() as f64);
+        }
+    }
+    ns.map(|mut times| {
+        times.remove(0); // the warm-up run
+        timing_of(&mut times, items)
+    })
 }
 
 /// Times `repeats` runs of `work` (after one warm-up run) and gives the
@@ -245,11 +292,16 @@ pub fn per_item(items: usize, repeats: usize, mut work: impl FnMut()) -> Timing 
             t0.elapsed().as_nanos() as f64
         })
         .collect();
+    timing_of(&mut ns, items)
+}
+
+/// Median and fastest of whole-run times `ns` (sorted in place), per item.
+fn timing_of(ns: &mut [f64], items: usize) -> Timing {
     let items = items.max(1) as f64;
     Timing {
-        ns_per_step_median: median(&mut ns) / items,
+        ns_per_step_median: median(ns) / items,
         ns_per_step_min: ns[0] / items,
-        repeats,
+        repeats: ns.len(),
     }
 }
 
@@ -383,7 +435,9 @@ mod tests {
     use super::*;
 
     /// Replaying the recorded steps through the bare filter gives the twin's
-    /// own estimate, bit for bit: the benchmark times what the twin does.
+    /// own estimate, bit for bit, in both copies of the step's code: the
+    /// benchmark times what the twin does, and its side-by-side row compares
+    /// two copies that compute the same thing.
     #[test]
     fn recorded_kinetic_steps_replay_to_the_twins_estimate() {
         let run = simulate("s-manoeuvre_new-broken").unwrap();
@@ -391,6 +445,7 @@ mod tests {
         let k = kinetic_steps(&inputs, TwinConfig::default()).unwrap();
         assert!(k.steps.len() > 500, "{} steps", k.steps.len());
         assert_eq!(k.run_once(), k.twin_end);
+        assert_eq!(k.run_once_in(StepCode::Baseline), k.twin_end);
     }
 
     #[test]

@@ -1,11 +1,12 @@
 //! Criterion benchmarks of the estimator: one adaptive-EKF step of the seed's
 //! kinematic model (target: under 250 ns median), and a whole 120 s trial at
-//! 5 Hz offline. Run with `cargo bench -p twin-core`.
+//! 5 Hz offline; and the step in the baseline x86-64 code beside its AVX2
+//! copy. Run with `cargo bench -p twin-core`.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::{SMatrix, Vector2, Vector4};
 use std::hint::black_box;
-use twin_core::aekf::{Aekf, AekfConfig, AekfState};
+use twin_core::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
 use twin_core::model::Measurement;
 use twin_core::models::kinematic::{KinematicInput, KinematicModel};
 
@@ -55,22 +56,38 @@ fn bench(c: &mut Criterion) {
         Vector2::zeros(),
     );
 
-    c.bench_function("aekf_step_seed_model", |b| {
-        let mut est = start;
-        let mut k = 0usize;
-        b.iter(|| {
-            let (u, y) = &data[k % data.len()];
-            if k.is_multiple_of(data.len()) {
-                est = start;
-            }
-            k += 1;
-            black_box(
-                filter
-                    .step(&mut est, black_box(u), black_box(y), 0.2)
-                    .unwrap(),
-            );
+    type SeedFilter = Aekf<KinematicModel, 4, 4, 2>;
+    type SeedStep = fn(
+        &SeedFilter,
+        &mut AekfState<4, 4, 2>,
+        &KinematicInput,
+        &Measurement<4>,
+        f64,
+    ) -> Result<StepReport<4, 2>, AekfError>;
+    // The step as the twin runs it (the AVX2 copy where the processor has
+    // it), then the same step in the baseline x86-64 code
+    // (`twin_core::simd`), one beside the other.
+    let steps: [(&str, SeedStep); 2] = [
+        ("aekf_step_seed_model", SeedFilter::step),
+        (
+            "aekf_step_seed_model_baseline_code",
+            SeedFilter::step_baseline,
+        ),
+    ];
+    for (name, step) in steps {
+        c.bench_function(name, |b| {
+            let mut est = start;
+            let mut k = 0usize;
+            b.iter(|| {
+                let (u, y) = &data[k % data.len()];
+                if k.is_multiple_of(data.len()) {
+                    est = start;
+                }
+                k += 1;
+                black_box(step(&filter, &mut est, black_box(u), black_box(y), 0.2).unwrap());
+            });
         });
-    });
+    }
 
     c.bench_function("trial_120s_seed_model", |b| {
         b.iter(|| {

@@ -343,7 +343,7 @@ where
             #[allow(unsafe_code)]
             return unsafe { self.step_avx2(state, input, y, dt_s) };
         }
-        self.step_portable(state, input, y, dt_s)
+        self.step_baseline(state, input, y, dt_s)
     }
 
     /// [`Self::step`] compiled for AVX2 (the same source, inlined here).
@@ -356,12 +356,14 @@ where
         y: &Measurement<M>,
         dt_s: f64,
     ) -> Result<StepReport<M, P>, AekfError> {
-        self.step_portable(state, input, y, dt_s)
+        self.step_baseline(state, input, y, dt_s)
     }
 
-    /// The step itself, for any processor; inlined into each copy.
+    /// [`Self::step`] in the baseline code, whatever the processor: the same
+    /// numbers, for benchmarks that time the AVX2 copy against it side by
+    /// side (`twin-bench core`) and for tests. Use [`Self::step`] otherwise.
     #[inline(always)]
-    fn step_portable(
+    pub fn step_baseline(
         &self,
         state: &mut AekfState<N, M, P>,
         input: &Mdl::Input,
@@ -661,7 +663,7 @@ mod tests {
         let mut succeeded = 0;
         for (k, (u, y)) in steps.iter().enumerate() {
             let a = filter.step(&mut dispatched, u, y, dt_s);
-            let b = filter.step_portable(&mut baseline, u, y, dt_s);
+            let b = filter.step_baseline(&mut baseline, u, y, dt_s);
             // Debug formatting prints every f64 exactly (shortest round trip),
             // and tells NaN, -0.0 and 0.0 apart, unlike `==`.
             assert_eq!(format!("{a:?}"), format!("{b:?}"), "report at step {k}");
