@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Regenerates the figures and tables of README.md from the commands that
-produce them, so nothing in the README is typed by hand.
+"""Regenerates the figures and tables of README.md (and web/README.md) from
+the commands that produce them, so nothing in a README is typed by hand.
 
 Each generated block sits between `<!-- BEGIN name -->` and `<!-- END name -->`
 markers; the block records the command that produced it. Usage (from the
@@ -10,6 +10,7 @@ repository root):
     python3 scripts/update-readme.py trials     # one block
 """
 import datetime
+import json
 import re
 import subprocess
 import sys
@@ -34,7 +35,39 @@ BLOCKS = {
     "bench-analyze": "cargo bench -q -p twin-cli --bench analyze 2>/dev/null | grep -E '^analyze/|time:'",
     "bench-daemon": "cargo run --release -q -p twin-bench -- daemon 2>/dev/null",
     "bench-daemon-no-liveliness": "cargo run --release -q -p twin-bench -- daemon --no-vessel-liveliness 2>/dev/null",
+    # The 100-vessel page test (needs Chromium and `npm ci` in web/); its
+    # measurement line, made a table by `fleet_table` below.
+    "web-fleet": "cd web && node --test tests/fleet.test.js 2>/dev/null | grep -o 'fleet page measurement: .*'",
 }
+
+# Blocks that live in another file than README.md.
+FILES = {"web-fleet": ROOT / "web" / "README.md"}
+
+
+def fleet_table(output: str) -> str:
+    """The fleet test's JSON measurement line as a markdown table."""
+    m = json.loads(output.split("fleet page measurement:", 1)[1])
+    f = m["frame_interval_ms"]
+    long_tasks = m["long_tasks"]
+    if isinstance(long_tasks, dict):
+        long_tasks = f"{long_tasks['count']}, the longest {long_tasks['longest_ms']} ms"
+    rows = [
+        ("vessels on the page", m["vessels"]),
+        ("events reaching the page", f"{m['events_per_s']:,} per s"),
+        ("frame interval (measured, not asserted)",
+         f"median {f['median']} ms, p95 {f['p95']} ms, p99 {f['p99']} ms, longest {f['max']} ms ({m['frames']} frames)"),
+        ("the page's scripts, share of the main thread (asserted <= 0.25)", m["script_busy_fraction"]),
+        ("script time per event / per frame", f"{m['ingest_ms_per_event']} ms / {m['render_ms_per_frame']} ms"),
+        ("long tasks", long_tasks),
+        ("click on another vessel -> page shows it", ", ".join(f"{x} ms" for x in m["follow_ms"])),
+        ("events skipped", m["skipped_events"]),
+    ]
+    lines = ["| measurement | value |", "|---|---|"]
+    lines += [f"| {name} | {value} |" for name, value in rows]
+    return "\n".join(lines) + "\n"
+
+
+FORMATTERS = {"web-fleet": fleet_table}
 
 
 def run(command: str) -> str:
@@ -46,21 +79,30 @@ def run(command: str) -> str:
 
 
 def main() -> None:
-    text = README.read_text()
-    wanted = sys.argv[1:] or [n for n in BLOCKS if f"<!-- BEGIN {n} -->" in text]
+    texts = {README: README.read_text()}
+    for path in FILES.values():
+        texts.setdefault(path, path.read_text())
+    wanted = sys.argv[1:] or [
+        n for n in BLOCKS if f"<!-- BEGIN {n} -->" in texts[FILES.get(n, README)]
+    ]
     for name in wanted:
+        path = FILES.get(name, README)
+        text = texts[path]
         command = BLOCKS[name]
         pattern = re.compile(rf"(<!-- BEGIN {re.escape(name)} -->\n)(.*?)(<!-- END {re.escape(name)} -->)", re.S)
         if not pattern.search(text):
-            raise SystemExit(f"README.md has no block '{name}'")
+            raise SystemExit(f"{path.relative_to(ROOT)} has no block '{name}'")
         today = datetime.date.today().isoformat()
         output = run(command)
+        if name in FORMATTERS:
+            output = FORMATTERS[name](output)
         if name in FENCED:
             output = "```text\n" + output + "```\n"
         body = f"Generated {today} by `{command}`:\n\n" + output + "\n"
-        text = pattern.sub(lambda m: m.group(1) + body + m.group(3), text)
+        texts[path] = pattern.sub(lambda m: m.group(1) + body + m.group(3), text)
         print(f"updated {name}")
-    README.write_text(text)
+    for path, text in texts.items():
+        path.write_text(text)
 
 
 if __name__ == "__main__":
