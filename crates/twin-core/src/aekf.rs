@@ -324,9 +324,10 @@ where
     /// estimate, with `input` the input that drove the vessel over that
     /// interval. On success the estimate is replaced; on error it is untouched.
     ///
-    /// On an x86-64 processor with AVX2 (every one since 2013-2015) the step
-    /// runs in a copy of its code compiled for 256-bit vectors, chosen at run
-    /// time; elsewhere in the baseline build. Both copies compute the same
+    /// On an x86-64 processor with AVX2 and FMA (most made since 2013-2015;
+    /// not some low-end Pentium, Celeron and Atom parts) the step runs in a
+    /// copy of its code compiled for 256-bit vectors, chosen at run time;
+    /// elsewhere in the baseline build. Both copies compute the same
     /// numbers bit for bit: Rust neither reorders nor fuses floating-point
     /// operations, whatever the vector width (see [`crate::simd`]).
     pub fn step(
