@@ -44,7 +44,49 @@ impl<const N: usize> PredictedPoint<N> {
 /// Each step uses the model's [`Model::forecast_transition`].
 /// Returns one point per input, at the end of its interval. Stops early at
 /// the first step that produces a non-finite state.
+///
+/// Like the filter's step, it runs a copy of its code compiled for AVX2
+/// where the processor has it, with the same numbers bit for bit
+/// ([`crate::simd`]).
 pub fn predict<Mdl, const N: usize, const M: usize, const P: usize>(
+    model: &Mdl,
+    state: &AekfState<N, M, P>,
+    q_density: &SMatrix<f64, N, N>,
+    start_time_s: f64,
+    inputs: impl IntoIterator<Item = (f64, Mdl::Input)>,
+) -> Vec<PredictedPoint<N>>
+where
+    Mdl: Model<N, M, P>,
+{
+    #[cfg(target_arch = "x86_64")]
+    if crate::simd::avx2_available() {
+        // SAFETY: `predict_avx2` requires AVX2 and FMA, and the processor
+        // running this code has both (checked on the line above).
+        #[allow(unsafe_code)]
+        return unsafe { predict_avx2(model, state, q_density, start_time_s, inputs) };
+    }
+    predict_baseline(model, state, q_density, start_time_s, inputs)
+}
+
+/// [`predict`] compiled for AVX2 (the same source, inlined here).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn predict_avx2<Mdl, const N: usize, const M: usize, const P: usize>(
+    model: &Mdl,
+    state: &AekfState<N, M, P>,
+    q_density: &SMatrix<f64, N, N>,
+    start_time_s: f64,
+    inputs: impl IntoIterator<Item = (f64, Mdl::Input)>,
+) -> Vec<PredictedPoint<N>>
+where
+    Mdl: Model<N, M, P>,
+{
+    predict_baseline(model, state, q_density, start_time_s, inputs)
+}
+
+/// [`predict`] in the baseline code, whatever the processor.
+#[inline(always)]
+fn predict_baseline<Mdl, const N: usize, const M: usize, const P: usize>(
     model: &Mdl,
     state: &AekfState<N, M, P>,
     q_density: &SMatrix<f64, N, N>,
@@ -122,4 +164,58 @@ where
         out.push((time_s, x));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::models::otter_twin::{OtterTwin, ShaftSpeeds};
+    use crate::twin::TwinConfig;
+    use nalgebra::Vector2;
+
+    /// The forecast's AVX2 copy and its baseline code give the same bits
+    /// (exact Debug text of every point), on the extended twin in a turn
+    /// with a propeller down and an uncertain estimate.
+    #[test]
+    fn both_copies_of_the_forecast_give_the_same_bits() {
+        if !crate::simd::avx2_available() {
+            eprintln!("no AVX2 here: both calls run the baseline code");
+        }
+        let kinetic = TwinConfig::default().kinetic;
+        let model = OtterTwin::<8>::new(kinetic.params);
+        let mut x0 = SVector::<f64, 8>::zeros();
+        x0[3] = 1.4;
+        x0[5] = 0.1;
+        let mut state = AekfState::new(
+            &kinetic.filter,
+            x0,
+            SMatrix::identity() * 0.05,
+            Vector2::new(0.25, 0.0),
+        );
+        state.upsilon[(3, 0)] = -0.3;
+        let inputs = (0..60).map(|k| {
+            let turn = if k < 30 { 0.6 } else { 1.0 };
+            let u = ShaftSpeeds {
+                port_radps: 90.0 * turn,
+                starboard_radps: 90.0,
+            };
+            (1.0, u)
+        });
+        let dispatched = predict(
+            &model,
+            &state,
+            &kinetic.filter.process_noise_density,
+            10.0,
+            inputs.clone(),
+        );
+        let baseline = predict_baseline(
+            &model,
+            &state,
+            &kinetic.filter.process_noise_density,
+            10.0,
+            inputs,
+        );
+        assert_eq!(dispatched.len(), 60);
+        assert_eq!(format!("{dispatched:?}"), format!("{baseline:?}"));
+    }
 }

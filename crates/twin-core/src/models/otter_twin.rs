@@ -526,6 +526,7 @@ impl<const N: usize> OtterTwin<N> {
     /// also the derivatives at the step's midpoint: the state after half the
     /// sub-steps when their number is even, else the middle sub-step's
     /// second RK stage (its own midpoint, which is the step's).
+    #[inline(always)]
     fn propagate8(
         &self,
         x0: &SVector<f64, 8>,
@@ -577,6 +578,7 @@ impl<const N: usize> OtterTwin<N> {
     /// `dt`, the midpoint rule): at the forecast's 1 s steps in a hard turn
     /// the difference is a fraction of a per cent (the test below), for a
     /// fifth of the derivative evaluations and products.
+    #[inline(always)]
     fn forecast_step8(
         &self,
         x0: &SVector<f64, 8>,
@@ -723,6 +725,9 @@ impl Model<8, 5, 2> for OtterTwin<8> {
             .0
     }
 
+    // Inlined into the forecast, so that it runs in the forecast's AVX2
+    // copy too (see `crate::simd`).
+    #[inline(always)]
     fn forecast_transition(
         &self,
         x: &SVector<f64, 8>,
