@@ -70,14 +70,11 @@ pub fn ldl<const M: usize>(a: &SMatrix<f64, M, M>) -> Option<Ldl<M>> {
         for k in 0..j {
             dj -= w[(j, k)] * l[(j, k)];
         }
-        // Positive and finite, NaN failing too: `1 / dj` is 0 for +inf and
-        // NaN for NaN. (Tested on the reciprocal, which is needed anyway:
-        // LLVM turns `dj.is_finite()` here into a dozen integer
-        // instructions per pivot.)
-        let inv = 1.0 / dj;
-        if !(dj > 0.0 && inv > 0.0) {
+        // Written so that NaN fails too.
+        if !(dj > 0.0 && dj.is_finite()) {
             return None;
         }
+        let inv = 1.0 / dj;
         d[j] = dj;
         inv_d[j] = inv;
         for i in j + 1..M {
