@@ -9,7 +9,7 @@
 //!    ([`crate::models::otter_twin`]); without, a kinematic model of any
 //!    vessel through water ([`crate::models::water_kinematic`]). The nominal
 //!    model has no current, no propeller loss and no sensor effect.
-//! 3. **Residuals of the nominal model** ([`residuals`]): innovation bias,
+//! 3. **Residuals of the nominal model** (`residuals`): innovation bias,
 //!    whiteness, NIS against its chi-square band, k-step-ahead prediction
 //!    errors at several horizons, and the correlation of the innovations
 //!    with candidate signatures (heading, speed, turn rate, acceleration,
