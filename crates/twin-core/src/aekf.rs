@@ -300,16 +300,13 @@ where
                 which: "initial fault covariance S(0)",
             });
         }
-        if config
-            .process_noise_density
-            .diagonal()
-            .iter()
-            .any(|q| *q < 0.0)
-            || (config.process_noise_density - config.process_noise_density.transpose()).amax()
-                > 1e-12
+        // Written so that NaN and the infinities fail too.
+        let q = &config.process_noise_density;
+        let q_finite = q.iter().all(|v| v.is_finite());
+        if !q_finite || q.diagonal().iter().any(|v| *v < 0.0) || (q - q.transpose()).amax() > 1e-12
         {
             return Err(AekfError::InvalidConfig(
-                "process noise density must be symmetric with a non-negative diagonal",
+                "process noise density must be finite and symmetric with a non-negative diagonal",
             ));
         }
         Ok(Self { model, config })
@@ -558,7 +555,9 @@ where
 
         // The checks of `AekfState::is_sane` on the new values, before any is
         // stored; then the fields are written in place (no second copy of
-        // the whole estimate).
+        // the whole estimate). The noise covariances are checked only when
+        // adaptation changed them: unchanged, they are the values checked
+        // when they were set (or the configuration's, checked by `new`).
         let mut diagonals_ok = true;
         for i in 0..N {
             diagonals_ok &= p_post[(i, i)] > 0.0;
@@ -573,8 +572,8 @@ where
             + poison(&upsilon)
             + poison(&held_information)
             + poison(&recent_information)
-            + poison(q_density.as_ref().unwrap_or(&state.process_noise_density))
-            + poison(r_next.as_ref().unwrap_or(&state.measurement_noise))
+            + q_density.as_ref().map_or(0.0, poison)
+            + r_next.as_ref().map_or(0.0, poison)
             == 0.0;
         if !(all_finite && diagonals_ok) {
             return Err(AekfError::Diverged {

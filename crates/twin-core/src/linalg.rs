@@ -3,9 +3,14 @@
 //! small inverses, and products that skip structural zeros.
 //!
 //! nalgebra's own versions are generic over storage and are not inlined into
-//! the filter's step; for 2x2 to 8x8 matrices these plain loops, fully
-//! unrolled by the compiler, are several times faster. Only what the filter
-//! needs is here.
+//! the filter's step; for 2x2 to 8x8 matrices these plain loops, unrolled by
+//! the compiler, are several times faster. Only what the filter needs is
+//! here.
+//!
+//! The products sum each column of their result in a local array and write
+//! it once. Summed in the result matrix instead, the 8 x 8 products (whose
+//! outer loop the compiler keeps rolled) stored and reloaded every partial
+//! sum: about 7 % more instructions per step of the extended twin.
 
 use nalgebra::{SMatrix, SVector};
 
@@ -219,12 +224,14 @@ pub fn mul<const R: usize, const K: usize, const C: usize>(
 ) -> SMatrix<f64, R, C> {
     let mut out = SMatrix::<f64, R, C>::zeros();
     for c in 0..C {
+        let mut acc = [0.0; R];
         for k in 0..K {
             let bkc = b[(k, c)];
             for r in 0..R {
-                out[(r, c)] += a[(r, k)] * bkc;
+                acc[r] += a[(r, k)] * bkc;
             }
         }
+        out.column_mut(c).copy_from_slice(&acc);
     }
     out
 }
@@ -297,14 +304,16 @@ pub fn mul_sparse_left<const R: usize, const K: usize, const C: usize>(
 ) -> SMatrix<f64, R, C> {
     let mut out = SMatrix::<f64, R, C>::zeros();
     for c in 0..C {
+        let mut acc = [0.0; R];
         for k in 0..K {
             let bkc = b[(k, c)];
             for r in 0..R {
                 if pa[r][k] {
-                    out[(r, c)] += a[(r, k)] * bkc;
+                    acc[r] += a[(r, k)] * bkc;
                 }
             }
         }
+        out.column_mut(c).copy_from_slice(&acc);
     }
     out
 }
@@ -318,15 +327,17 @@ pub fn mul_sparse_right<const R: usize, const K: usize, const C: usize>(
 ) -> SMatrix<f64, R, C> {
     let mut out = SMatrix::<f64, R, C>::zeros();
     for c in 0..C {
+        let mut acc = [0.0; R];
         for k in 0..K {
             if !pb[k][c] {
                 continue;
             }
             let bkc = b[(k, c)];
             for r in 0..R {
-                out[(r, c)] += a[(r, k)] * bkc;
+                acc[r] += a[(r, k)] * bkc;
             }
         }
+        out.column_mut(c).copy_from_slice(&acc);
     }
     out
 }
@@ -344,15 +355,17 @@ pub fn sym_mul_t_sparse<const N: usize, const K: usize>(
 ) -> SMatrix<f64, N, N> {
     let mut out = SMatrix::<f64, N, N>::zeros();
     for c in 0..N {
+        let mut acc = [0.0; N];
         for k in 0..K {
             if !pb[c][k] {
                 continue;
             }
             let bck = b[(c, k)];
             for r in 0..N {
-                out[(r, c)] += a[(r, k)] * bck;
+                acc[r] += a[(r, k)] * bck;
             }
         }
+        out.column_mut(c).copy_from_slice(&acc);
     }
     for c in 0..N {
         for r in c + 1..N {

@@ -318,6 +318,16 @@ fn bad_steps_are_errors_and_leave_the_estimate_unchanged() {
     let mut c = cfg;
     c.forgetting_time_constant_s = 0.0;
     assert!(Aekf::new(KinematicModel, c).is_err());
+    // A process noise that is not finite, even symmetric, is refused: the
+    // step checks the noise covariances only when adaptation changes them.
+    for bad in [f64::NAN, f64::INFINITY] {
+        let mut c = cfg;
+        c.process_noise_density[(1, 1)] = bad;
+        assert!(matches!(
+            Aekf::new(KinematicModel, c),
+            Err(AekfError::InvalidConfig(_))
+        ));
+    }
 }
 
 #[test]
