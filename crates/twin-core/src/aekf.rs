@@ -34,7 +34,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use crate::linalg::{
-    cholesky, inverse_small, ldl, mul, mul_sparse_left, mul_sparse_right, mul_t, mul_tn,
+    cholesky, inverse_small, ldl, mul, mul_sparse_left, mul_sparse_right, mul_t, mul_tn, sym_mul_t,
     sym_mul_t_sparse,
 };
 
@@ -435,16 +435,13 @@ where
         };
         let k = sigma_chol.solve(&h_p).transpose();
         let ikh = identity - mul_sparse_right(&k, &h, h_pattern);
-        let dense_n = crate::linalg::dense::<N, N>();
-        let dense_m = crate::linalg::dense::<N, M>();
         // K R K^T: R is diagonal unless adaptation filled it in.
         let k_r = if is_diagonal(&r) {
             SMatrix::<f64, N, M>::from_fn(|i, j| k[(i, j)] * r[(j, j)])
         } else {
             mul(&k, &r)
         };
-        let p_post = sym_mul_t_sparse(&mul(&ikh, &p_prior), &ikh, &dense_n)
-            + sym_mul_t_sparse(&k_r, &k, &dense_m);
+        let p_post = sym_mul_t(&mul(&ikh, &p_prior), &ikh) + sym_mul_t(&k_r, &k);
 
         // Steps 6-7, sharing F Upsilon_old + Psi.
         let f_ups_psi = mul_sparse_left(&f, f_pattern, &state.upsilon) + psi;

@@ -75,8 +75,9 @@ pub fn ldl<const M: usize>(a: &SMatrix<f64, M, M>) -> Option<Ldl<M>> {
         for k in 0..j {
             dj -= w[(j, k)] * l[(j, k)];
         }
-        // Written so that NaN fails too.
-        if !(dj > 0.0 && dj.is_finite()) {
+        // Two comparisons, so that NaN and +-inf fail too (cheaper here than
+        // `is_finite`, which compiles to integer tests).
+        if !(dj > 0.0 && dj < f64::INFINITY) {
             return None;
         }
         let inv = 1.0 / dj;
@@ -367,12 +368,40 @@ pub fn sym_mul_t_sparse<const N: usize, const K: usize>(
         }
         out.column_mut(c).copy_from_slice(&acc);
     }
+    mirror_lower(&mut out);
+    out
+}
+
+/// `a b^T` for a product known to be symmetric, with every entry of `b`
+/// possibly non-zero: [`sym_mul_t_sparse`] without a pattern to test.
+#[inline(always)]
+pub fn sym_mul_t<const N: usize, const K: usize>(
+    a: &SMatrix<f64, N, K>,
+    b: &SMatrix<f64, N, K>,
+) -> SMatrix<f64, N, N> {
+    let mut out = SMatrix::<f64, N, N>::zeros();
+    for c in 0..N {
+        let mut acc = [0.0; N];
+        for k in 0..K {
+            let bck = b[(c, k)];
+            for r in 0..N {
+                acc[r] += a[(r, k)] * bck;
+            }
+        }
+        out.column_mut(c).copy_from_slice(&acc);
+    }
+    mirror_lower(&mut out);
+    out
+}
+
+/// Copies the lower triangle of `m` over its upper triangle.
+#[inline(always)]
+fn mirror_lower<const N: usize>(m: &mut SMatrix<f64, N, N>) {
     for c in 0..N {
         for r in c + 1..N {
-            out[(c, r)] = out[(r, c)];
+            m[(c, r)] = m[(r, c)];
         }
     }
-    out
 }
 
 /// Solves `L y = b` for lower-triangular `L`, column by column.
@@ -469,6 +498,7 @@ mod tests {
         let sym = sym_mul_t_sparse(&(g * pm), &g, &dense());
         assert!((sym - g * pm * g.transpose()).amax() < 1e-12);
         assert_eq!(sym, sym.transpose());
+        assert_eq!(sym_mul_t(&(g * pm), &g), sym);
         assert!(diagonal::<3>()[1][1] && !diagonal::<3>()[0][1]);
     }
 
