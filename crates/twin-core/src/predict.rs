@@ -102,7 +102,8 @@ where
     let mut p_xt = state.upsilon * state.s;
     let mut p_xx = state.p + p_xt * state.upsilon.transpose();
     let mut time_s = start_time_s;
-    let mut out = Vec::new();
+    let inputs = inputs.into_iter();
+    let mut out = Vec::with_capacity(inputs.size_hint().0);
     for (dt_s, input) in inputs {
         if !(dt_s > 0.0 && dt_s.is_finite()) {
             break;
@@ -150,7 +151,8 @@ where
 {
     let mut x = state.x;
     let mut time_s = start_time_s;
-    let mut out = Vec::new();
+    let inputs = inputs.into_iter();
+    let mut out = Vec::with_capacity(inputs.size_hint().0);
     for (dt_s, input) in inputs {
         if !(dt_s > 0.0 && dt_s.is_finite()) {
             break;
