@@ -245,12 +245,14 @@ pub fn mul_t<const R: usize, const K: usize, const C: usize>(
 ) -> SMatrix<f64, R, C> {
     let mut out = SMatrix::<f64, R, C>::zeros();
     for c in 0..C {
+        let mut acc = [0.0; R];
         for k in 0..K {
             let bck = b[(c, k)];
             for r in 0..R {
-                out[(r, c)] += a[(r, k)] * bck;
+                acc[r] += a[(r, k)] * bck;
             }
         }
+        out.column_mut(c).copy_from_slice(&acc);
     }
     out
 }
@@ -379,17 +381,7 @@ pub fn sym_mul_t<const N: usize, const K: usize>(
     a: &SMatrix<f64, N, K>,
     b: &SMatrix<f64, N, K>,
 ) -> SMatrix<f64, N, N> {
-    let mut out = SMatrix::<f64, N, N>::zeros();
-    for c in 0..N {
-        let mut acc = [0.0; N];
-        for k in 0..K {
-            let bck = b[(c, k)];
-            for r in 0..N {
-                acc[r] += a[(r, k)] * bck;
-            }
-        }
-        out.column_mut(c).copy_from_slice(&acc);
-    }
+    let mut out = mul_t(a, b);
     mirror_lower(&mut out);
     out
 }
