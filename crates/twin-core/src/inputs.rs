@@ -86,7 +86,7 @@ pub enum InputConfigError {
 }
 
 /// One second-order section in transposed direct form II.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 struct Biquad {
     b: [f64; 3],
     a: [f64; 2],
@@ -110,11 +110,21 @@ impl Biquad {
     }
 }
 
+/// The most second-order sections a filter of order 1 to 8 needs.
+const MAX_SECTIONS: usize = 4;
+
 /// A digital Butterworth low-pass as a cascade of second-order sections,
 /// designed by the bilinear transform with pre-warping.
-#[derive(Debug, Clone, PartialEq)]
+///
+/// The sections are held inline (no heap), so copying a filter, as the twin
+/// does on every fix to keep a refused fix from changing anything, does not
+/// allocate.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Butterworth {
-    sections: Vec<Biquad>,
+    /// The first `section_count` are the filter; the rest stay at their
+    /// default and are never used.
+    sections: [Biquad; MAX_SECTIONS],
+    section_count: usize,
     sample_rate_hz: f64,
     primed: bool,
 }
@@ -138,7 +148,8 @@ impl Butterworth {
         // Pre-warped analogue cut-off, with the bilinear constant k = 2 fs
         // folded in: w = tan(pi fc / fs).
         let w = (PI * cutoff_hz / sample_rate_hz).tan();
-        let mut sections = Vec::new();
+        let mut sections = [Biquad::default(); MAX_SECTIONS];
+        let mut section_count = 0;
         // Conjugate pole pairs of the normalised prototype: s^2 + 2 sin(phi) s + 1
         // with phi = (2k+1) pi / (2n), k < n/2.
         for k in 0..order / 2 {
@@ -147,23 +158,26 @@ impl Butterworth {
             // H(s) = w^2 / (s^2 + alpha w s + w^2) with s = (1 - z^-1)/(1 + z^-1).
             let d = 1.0 + alpha * w + w * w;
             let g = w * w / d;
-            sections.push(Biquad {
+            sections[section_count] = Biquad {
                 b: [g, 2.0 * g, g],
                 a: [2.0 * (w * w - 1.0) / d, (1.0 - alpha * w + w * w) / d],
                 z: [0.0; 2],
-            });
+            };
+            section_count += 1;
         }
         if order % 2 == 1 {
             // Real pole: H(s) = w / (s + w).
             let d = 1.0 + w;
-            sections.push(Biquad {
+            sections[section_count] = Biquad {
                 b: [w / d, w / d, 0.0],
                 a: [(w - 1.0) / d, 0.0],
                 z: [0.0; 2],
-            });
+            };
+            section_count += 1;
         }
         Ok(Self {
             sections,
+            section_count,
             sample_rate_hz,
             primed: false,
         })
@@ -175,18 +189,20 @@ impl Butterworth {
     pub fn step(&mut self, x: f64) -> f64 {
         if !self.primed {
             self.primed = true;
-            for s in &mut self.sections {
+            for s in self.sections[..self.section_count].iter_mut() {
                 // Steady state of TDF-II for a constant input x with unit DC gain.
                 s.z[1] = s.b[2] * x - s.a[1] * x;
                 s.z[0] = s.b[1] * x - s.a[0] * x + s.z[1];
             }
         }
-        self.sections.iter_mut().fold(x, |v, s| s.step(v))
+        self.sections[..self.section_count]
+            .iter_mut()
+            .fold(x, |v, s| s.step(v))
     }
 
     /// The delay of slow signals through the filter, seconds.
     pub fn group_delay_at_dc_s(&self) -> f64 {
-        self.sections
+        self.sections[..self.section_count]
             .iter()
             .map(Biquad::group_delay_at_dc_samples)
             .sum::<f64>()
@@ -195,7 +211,7 @@ impl Butterworth {
 
     /// Gain at DC (1 for a low-pass; exposed for tests).
     pub fn dc_gain(&self) -> f64 {
-        self.sections
+        self.sections[..self.section_count]
             .iter()
             .map(|s| (s.b[0] + s.b[1] + s.b[2]) / (1.0 + s.a[0] + s.a[1]))
             .product()
@@ -206,7 +222,7 @@ impl Butterworth {
         let w = 2.0 * PI * freq_hz / self.sample_rate_hz;
         let (c1, s1) = (w.cos(), -w.sin());
         let (c2, s2) = ((2.0 * w).cos(), -(2.0 * w).sin());
-        self.sections
+        self.sections[..self.section_count]
             .iter()
             .map(|s| {
                 let nr = s.b[0] + s.b[1] * c1 + s.b[2] * c2;
@@ -220,9 +236,14 @@ impl Butterworth {
 }
 
 #[derive(Debug, Clone, PartialEq)]
+#[expect(
+    clippy::large_enum_variant,
+    reason = "one per deriver; a box would put an allocation on every copy of the twin"
+)]
 enum Smoother {
     None,
-    Butterworth(Box<[Butterworth; 2]>),
+    /// Inline, like the filters' sections: a copy does not allocate.
+    Butterworth([Butterworth; 2]),
     Lag {
         time_constant_s: f64,
         limits: [f64; 2],
@@ -300,10 +321,10 @@ impl InputDeriver {
                 order,
                 cutoff_hz,
                 sample_rate_hz,
-            } => Smoother::Butterworth(Box::new([
-                Butterworth::new(order, cutoff_hz, sample_rate_hz)?,
-                Butterworth::new(order, cutoff_hz, sample_rate_hz)?,
-            ])),
+            } => {
+                let filter = Butterworth::new(order, cutoff_hz, sample_rate_hz)?;
+                Smoother::Butterworth([filter; 2])
+            }
             LowPass::FirstOrderLag {
                 time_constant_s,
                 max_accel_mps2,

@@ -435,6 +435,41 @@ struct KineticEstimator {
     heading_mean: [f64; 2],
 }
 
+/// What [`VesselTwin::on_gnss`] can have changed when a step fails: the
+/// frame, the seed's estimator (stepped before the extended filter), the
+/// extended filter's state where a restart cleared it (its filter leaves it
+/// unchanged when a step fails), and the propeller samples. The decision is
+/// updated only after every fallible point.
+struct StepUndo {
+    frame: Option<LocalFrame>,
+    seed: SeedEstimator,
+    kinetic_state: Option<Option<AekfState<8, 5, 2>>>,
+    propellers: PropellerAccumulator,
+    last_propeller_time_s: Option<f64>,
+}
+
+impl StepUndo {
+    fn of(twin: &VesselTwin, restart: bool) -> Self {
+        Self {
+            frame: twin.frame,
+            seed: twin.seed.clone(),
+            kinetic_state: restart.then_some(twin.kinetic.state),
+            propellers: twin.propellers,
+            last_propeller_time_s: twin.last_propeller_time_s,
+        }
+    }
+
+    fn restore(self, twin: &mut VesselTwin) {
+        twin.frame = self.frame;
+        twin.seed = self.seed;
+        if let Some(state) = self.kinetic_state {
+            twin.kinetic.state = state;
+        }
+        twin.propellers = self.propellers;
+        twin.last_propeller_time_s = self.last_propeller_time_s;
+    }
+}
+
 #[derive(Debug, Clone, Copy, Default)]
 struct PropellerAccumulator {
     sum_port: f64,
@@ -678,24 +713,31 @@ impl VesselTwin {
             }
         }
 
-        // Step on clones so that a refused step leaves everything as it was.
-        let mut next = self.clone();
-        next.frame = Some(frame);
+        // A refused step leaves everything as it was: what the step can
+        // change before its last fallible point is kept and put back on
+        // `Err` (a copy of the whole twin, configuration included, cost more
+        // than the rest of the twin's own work per fix).
+        let undo = StepUndo::of(self, restart);
+        self.frame = Some(frame);
         if restart {
-            next.seed.state = None;
-            next.kinetic.state = None;
+            self.seed.state = None;
+            self.kinetic.state = None;
             if self.last_fix.is_some_and(|(t, _)| fix.time_s < t) {
                 // A new track back in time: propeller samples start over too.
-                next.last_propeller_time_s = None;
-                next.propellers = PropellerAccumulator::default();
+                self.last_propeller_time_s = None;
+                self.propellers = PropellerAccumulator::default();
             }
         }
-        let changes = next.step_estimators(fix, ne, restart)?;
-        next.jump_run.clear();
-        next.last_fix = Some((fix.time_s, ne));
-        let out = next.output(fix.time_s, changes);
-        *self = next;
-        Ok(out)
+        let changes = match self.step_estimators(fix, ne, restart) {
+            Ok(changes) => changes,
+            Err(r) => {
+                undo.restore(self);
+                return Err(r);
+            }
+        };
+        self.jump_run.clear();
+        self.last_fix = Some((fix.time_s, ne));
+        Ok(self.output(fix.time_s, changes))
     }
 
     /// Records a rejected jump so that a run of consistent ones can restart
@@ -1278,5 +1320,56 @@ mod tests {
             twin.on_gnss(&fix(910.4, 1000.0)),
             Err(Rejection::Jump { .. })
         ));
+    }
+
+    /// Both estimators running after `fixes` fixes, with propeller speeds
+    /// waiting for the next; with `poisoned`, the extended filter's
+    /// covariance holds a NaN, so that its next step fails after the seed's
+    /// has succeeded.
+    fn twin_with_both_estimators(fixes: usize, poisoned: bool) -> VesselTwin {
+        let mut twin = VesselTwin::new(TwinConfig::default()).unwrap();
+        let propellers = |t: f64| PropellerSpeeds {
+            time_s: t - 0.1,
+            port_radps: 70.0,
+            starboard_radps: 70.0,
+        };
+        for k in 0..fixes {
+            let t = 1000.0 + 0.2 * k as f64;
+            twin.on_propellers(&propellers(t)).unwrap();
+            twin.on_gnss(&fix(t, 0.3 * k as f64)).unwrap();
+        }
+        if poisoned {
+            let state = twin.kinetic.state.as_mut().expect("the extended twin runs");
+            state.p[(0, 0)] = f64::NAN;
+        }
+        twin.on_propellers(&propellers(1000.0 + 0.2 * fixes as f64))
+            .unwrap();
+        twin
+    }
+
+    #[test]
+    fn a_fix_the_extended_filter_refuses_changes_nothing() {
+        let fixes = 40;
+        let next = fix(1000.0 + 0.2 * fixes as f64, 0.3 * fixes as f64);
+        let mut twin = twin_with_both_estimators(fixes, true);
+        let before = format!("{twin:?}");
+        let refused = twin.on_gnss(&next);
+        assert!(
+            matches!(refused, Err(Rejection::Estimator(_))),
+            "{refused:?}"
+        );
+        // Everything, the seed's estimator (already stepped when the
+        // extended filter failed) and the propeller samples included.
+        assert_eq!(format!("{twin:?}"), before);
+
+        // The same fix without the poison is accepted and changes the seed's
+        // estimate and the propeller samples: the comparison above could see
+        // those changes.
+        let mut healthy = twin_with_both_estimators(fixes, false);
+        let seed_before = healthy.seed.state.unwrap().x;
+        let samples_before = healthy.propellers.count;
+        healthy.on_gnss(&next).expect("a working filter accepts it");
+        assert_ne!(healthy.seed.state.unwrap().x, seed_before);
+        assert_ne!(healthy.propellers.count, samples_before);
     }
 }
