@@ -136,7 +136,7 @@ impl DaemonOptions {
                 window_s: 10.0,
                 warmup_s: 1.5,
                 grace_s: 1.0,
-                ramp_steps: 3,
+                ramp_steps: 5,
                 ramp_window_s: 4.0,
                 saturation_vessels: HEADLINE_VESSELS,
                 saturation_window_s: 3.0,
@@ -400,6 +400,20 @@ fn per_vessel_text(r: &PointResult) -> String {
         .map_or("-".into(), |k| format!("{:.1} KB", k * 1024.0 / 1e3))
 }
 
+/// Forecasts per second in the window, and how often that makes one per
+/// vessel: "9,870 (every 1.01 s)"; "-" for raw Zenoh.
+fn forecasts_text(r: &PointResult) -> String {
+    match r.forecasts_per_s {
+        Some(f) if f > 0.0 => format!(
+            "{} (every {:.1} s)",
+            rate_text(f),
+            r.spec.vessels as f64 / f
+        ),
+        Some(_) => "0".into(),
+        None => "-".into(),
+    }
+}
+
 fn cpu_text(r: &PointResult) -> String {
     r.cpu_pct_of_core
         .map_or("-".into(), |c| format!("{c:.0} %"))
@@ -599,6 +613,11 @@ impl DaemonReport {
                     mb_text(d.rss_end_kib),
                     per_vessel_text(d)
                 );
+                let _ = writeln!(
+                    s,
+                    "| same: forecasts computed per s (each vessel's, every) | {} | | |",
+                    forecasts_text(d)
+                );
             }
             None => {
                 let _ = writeln!(
@@ -683,11 +702,11 @@ impl DaemonReport {
         let _ = writeln!(s);
         let _ = writeln!(
             s,
-            "| vessels | path | run | fixes/s planned | sent | faults (raw: fixes) received/s | lost | p50 | p99 | max | CPU | generator lag (max) | RSS before -> end | per vessel | sustained |"
+            "| vessels | path | run | fixes/s planned | sent | faults (raw: fixes) received/s | lost | p50 | p99 | max | CPU | generator lag (max) | RSS before -> end | per vessel | forecasts/s | sustained |"
         );
         let _ = writeln!(
             s,
-            "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"
+            "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"
         );
         let mut paced: Vec<(&str, &PointResult)> = self
             .scaling
@@ -699,7 +718,7 @@ impl DaemonReport {
         for (run, r) in paced {
             let _ = writeln!(
                 s,
-                "| {} | {} | {run} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} -> {} | {} | {} |",
+                "| {} | {} | {run} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} -> {} | {} | {} | {} |",
                 thousands(r.spec.vessels as u64),
                 path_text(r.spec.path),
                 rate_text(r.planned_fixes_per_s.unwrap_or(0.0)),
@@ -714,6 +733,7 @@ impl DaemonReport {
                 mb_text(r.rss_base_kib),
                 mb_text(r.rss_end_kib),
                 per_vessel_text(r),
+                forecasts_text(r),
                 if sustained(r) {
                     "yes"
                 } else if limited_by_generator(r) {
@@ -770,8 +790,9 @@ impl DaemonReport {
                 "Daemon settings: `config/twind.toml` defaults except `[diagnose] enabled = false` \
                  (the live diagnose, seconds of CPU per vessel every few minutes on a blocking thread, \
                  is off for this benchmark). Predictions at their defaults: a {} s forecast at {} s steps \
-                 every {} s of message time per vessel, computed on {} forecast thread(s) at nice 10, \
-                 at most one in flight per vessel (on a saturated machine they come less often); \
+                 every {} s of message time per vessel, computed on {} forecast thread(s) under `SCHED_IDLE` \
+                 (CPU time nothing else wants), at most one in flight per vessel (on a busy machine they \
+                 come less often: the forecasts/s column); \
                  state and fault on every fix; vessel queue depth {}; publishers `CongestionControl::Block`.",
                 st.publish.prediction_horizon_s,
                 st.publish.prediction_step_s,

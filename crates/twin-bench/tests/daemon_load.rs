@@ -67,6 +67,12 @@ fn a_small_fleet_through_the_daemon_comes_back_whole() {
     assert!(daemon.accepted.get("actuators").copied().unwrap_or(0) >= r.actuators_sent);
     // A fault payload is larger than the fix that produced it.
     assert!(r.received_bytes_mean > r.gnss_bytes_mean);
+    // The forecasts are counted (how many depends on the idle CPU time).
+    assert!(
+        r.forecasts_per_s.is_some_and(|f| f.is_finite() && f >= 0.0),
+        "{:?}",
+        r.forecasts_per_s
+    );
 }
 
 #[test]
@@ -74,6 +80,7 @@ fn a_small_fleet_straight_through_zenoh_comes_back_whole() {
     let r = measure(&spec(Path::Raw), Ending::Graceful).unwrap();
     check_common(&r);
     assert!(r.daemon.is_none());
+    assert!(r.forecasts_per_s.is_none(), "no daemon, no forecasts");
     // Raw: the subscriber receives the fixes themselves.
     assert!((r.received_bytes_mean - r.gnss_bytes_mean).abs() < 2.0);
 }

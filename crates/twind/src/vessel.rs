@@ -584,7 +584,7 @@ impl VesselTask {
     }
 
     async fn put_state(&self, state: &StateMessage, p: &OutputKeys) {
-        let Ok(bytes) = serde_json::to_vec(state) else {
+        let Ok(bytes) = encode_json(state, OUTPUT_CAPACITY_BYTES) else {
             return;
         };
         if let Ok(mut map) = self.latest.write() {
@@ -619,7 +619,7 @@ impl VesselTask {
     }
 
     async fn put_json<T: serde::Serialize>(&self, topic: Topic, key: &KeyExpr<'static>, value: &T) {
-        match serde_json::to_vec(value) {
+        match encode_json(value, OUTPUT_CAPACITY_BYTES) {
             Ok(bytes) => {
                 self.tap_out(topic, &bytes);
                 if let Err(e) = self.put(key, bytes).await {
@@ -674,4 +674,20 @@ impl VesselTask {
         self.put_json(Topic::TwinStats, &p.stats, &self.stats_message())
             .await;
     }
+}
+
+/// Room reserved for an output payload: a state or fault message is about
+/// 600 bytes, so each is written into one allocation.
+const OUTPUT_CAPACITY_BYTES: usize = 1024;
+
+/// `value` as JSON, written into a buffer of `capacity_bytes` to start with
+/// (`serde_json::to_vec` starts empty and reallocates as it grows, about
+/// seven times for a fault message).
+pub(crate) fn encode_json<T: serde::Serialize + ?Sized>(
+    value: &T,
+    capacity_bytes: usize,
+) -> serde_json::Result<Vec<u8>> {
+    let mut bytes = Vec::with_capacity(capacity_bytes);
+    serde_json::to_writer(&mut bytes, value)?;
+    Ok(bytes)
 }

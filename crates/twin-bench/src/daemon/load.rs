@@ -221,6 +221,10 @@ pub struct PointResult {
     pub received_bytes_mean: f64,
     /// The daemon's own counters (daemon path, graceful ending).
     pub daemon: Option<DaemonCounters>,
+    /// Forecasts the daemon computed per second of the window (daemon
+    /// path): they run on idle CPU time, so under load they come less often
+    /// than one per vessel per `prediction_interval_s`.
+    pub forecasts_per_s: Option<f64>,
 }
 
 impl PointResult {
@@ -771,6 +775,7 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
     // The window.
     let threads_before = procstat::thread_ticks();
     let cpu_before = procstat::process_ticks();
+    let forecasts_before = twind::forecast::computed_total();
     let w0 = start.elapsed().as_micros() as i64;
     let w1 = w0 + (spec.window_s * 1e6) as i64;
     window.start_us.store(w0, Ordering::Release);
@@ -782,6 +787,7 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
         }
     };
     sleep_until(w1);
+    let forecasts_in_window = twind::forecast::computed_total() - forecasts_before;
     let cpu_after = procstat::process_ticks();
     let threads_after = procstat::thread_ticks();
     let rss_end_kib = procstat::rss_kib();
@@ -858,6 +864,8 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
         actuators_bytes_mean: shared.actuators_bytes.load(Ordering::Relaxed) as f64 / sent_total,
         received_bytes_mean,
         daemon: None,
+        forecasts_per_s: matches!(spec.path, Path::Daemon)
+            .then(|| forecasts_in_window as f64 / window_s),
     };
 
     match ending {

@@ -73,7 +73,7 @@ pub fn thread_group(name: &str) -> &'static str {
     let base = name.trim_end_matches(|c: char| c.is_ascii_digit() || c == '-');
     match base {
         "twind-rt" => "daemon (twind's tokio workers)",
-        "twind-forecast" => "daemon (forecast threads, nice 10)",
+        "twind-forecast" => "daemon (forecast threads, SCHED_IDLE)",
         "bench-gen" => "load generator",
         "rx" | "tx" | "net" | "app" | "acc" => "Zenoh runtimes (all sessions, subscriber callback)",
         _ => "other",
@@ -112,7 +112,7 @@ mod tests {
         assert_eq!(thread_group("bench-gen"), "load generator");
         assert_eq!(
             thread_group("twind-forecast-"),
-            "daemon (forecast threads, nice 10)"
+            "daemon (forecast threads, SCHED_IDLE)"
         );
         assert_eq!(thread_group("twin-bench"), "other");
     }
