@@ -221,6 +221,9 @@ pub struct PointResult {
     pub received_bytes_mean: f64,
     /// The daemon's own counters (daemon path, graceful ending).
     pub daemon: Option<DaemonCounters>,
+    /// Threads of the load generator (raw Zenoh: one per core, at most one
+    /// per vessel; the daemon path: one).
+    pub generator_threads: usize,
     /// Forecasts the daemon computed per second of the window (daemon
     /// path): they run on idle CPU time, so under load they come less often
     /// than one per vessel per `prediction_interval_s`.
@@ -250,7 +253,7 @@ impl PointResult {
         }
     }
 
-    /// CPU of the load generator's thread over the window, % of one core.
+    /// CPU of the load generator's threads over the window, % of one core.
     pub fn generator_cpu_pct(&self) -> Option<f64> {
         self.cpu_pct_by_group
             .get(procstat::thread_group("bench-gen"))
@@ -481,11 +484,17 @@ struct GenShared {
     errors: AtomicU64,
 }
 
+/// One of the generator's threads: it sends the messages of a contiguous
+/// share of the fleet.
 struct Generator {
     session: zenoh::Session,
-    /// Per vessel: the shaft-speed key, the GNSS key.
+    /// Per vessel of this share: the shaft-speed key, the GNSS key.
     keys: Vec<[KeyExpr<'static>; 2]>,
-    fleet: Fleet,
+    /// The fleet index of the share's first vessel.
+    first_vessel: usize,
+    /// Seeds this thread's GNSS noise.
+    seed: u64,
+    fleet: Arc<Fleet>,
     rate_hz: Option<f64>,
     start: Instant,
     epoch_s: f64,
@@ -543,7 +552,7 @@ impl Generator {
 
     fn run(self) {
         let n = self.keys.len();
-        let mut rng = SplitMix64::new(0x7717_b0a7);
+        let mut rng = SplitMix64::new(self.seed);
         let mut last = vec![[i64::MIN + 1; 2]; n];
         let begin_us = self.now_us();
         let per_s = self.rate_hz.map(|r| r * n as f64);
@@ -577,7 +586,9 @@ impl Generator {
             );
             let g_us = self.stamp(&mut last[v][1]);
             let t = self.epoch_s + g_us as f64 * 1e-6;
-            let fix = self.fleet.fix(v, t, g_us as f64 * 1e-6, &mut rng);
+            let fix = self
+                .fleet
+                .fix(self.first_vessel + v, t, g_us as f64 * 1e-6, &mut rng);
             self.put_counted(
                 &self.keys[v][1],
                 encode_gnss(&fix, false),
@@ -735,23 +746,46 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
 
     let rss_base_kib = procstat::rss_kib();
     let shared = Arc::new(GenShared::default());
-    let generator = Generator {
-        session: generator_session.clone(),
-        keys: vessel_keys,
-        fleet,
-        rate_hz: spec.rate_hz,
-        start,
-        epoch_s,
-        window: window.clone(),
-        shared: shared.clone(),
+    // Raw Zenoh: one generator thread per core (each with a contiguous share
+    // of the fleet, all through the one session), since one thread alone
+    // cannot load Zenoh to its limit. The daemon path: one thread, which
+    // uses under a third of a core there, while a second one through the
+    // same session cost about 8 % of a core more in contention (measured at
+    // 5,000 vessels x 10 Hz, 2026-11-22): CPU taken from the daemon.
+    let threads = match spec.path {
+        Path::Raw => std::thread::available_parallelism().map_or(1, |c| c.get()),
+        Path::Daemon => 1,
     };
-    let gen_thread = std::thread::Builder::new()
-        .name("bench-gen".into())
-        .spawn(move || generator.run())
-        .context("starting the generator")?;
+    let share = n.div_ceil(threads.clamp(1, n));
+    let fleet = Arc::new(fleet);
+    let mut gen_threads = Vec::new();
+    let mut keys_left = vessel_keys;
+    while !keys_left.is_empty() {
+        let k = gen_threads.len();
+        let rest = keys_left.split_off(share.min(keys_left.len()));
+        let generator = Generator {
+            session: generator_session.clone(),
+            keys: std::mem::replace(&mut keys_left, rest),
+            first_vessel: k * share,
+            seed: 0x7717_b0a7 + k as u64,
+            fleet: fleet.clone(),
+            rate_hz: spec.rate_hz,
+            start,
+            epoch_s,
+            window: window.clone(),
+            shared: shared.clone(),
+        };
+        gen_threads.push(
+            std::thread::Builder::new()
+                .name(format!("bench-gen-{k}"))
+                .spawn(move || generator.run())
+                .context("starting the generator")?,
+        );
+    }
 
     // Warm-up: at least `warmup_s`, and until every vessel has been heard
     // from (every daemon task started and publishing), up to WARMUP_CAP times.
+    let generator_threads = gen_threads.len();
     let warm_start = Instant::now();
     let cap = Duration::from_secs_f64(spec.warmup_s * WARMUP_CAP);
     let least = Duration::from_secs_f64(spec.warmup_s);
@@ -764,7 +798,7 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
         if elapsed >= cap {
             break true;
         }
-        if gen_thread.is_finished() {
+        if gen_threads.iter().any(|t| t.is_finished()) {
             anyhow::bail!("the generator stopped during the warm-up");
         }
         std::thread::sleep(Duration::from_millis(20));
@@ -864,6 +898,7 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
         actuators_bytes_mean: shared.actuators_bytes.load(Ordering::Relaxed) as f64 / sent_total,
         received_bytes_mean,
         daemon: None,
+        generator_threads,
         forecasts_per_s: matches!(spec.path, Path::Daemon)
             .then(|| forecasts_in_window as f64 / window_s),
     };
@@ -871,7 +906,7 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
     match ending {
         Ending::Abandon => {
             // Dropping these would wait for a saturated daemon to drain.
-            std::mem::forget(gen_thread);
+            std::mem::forget(gen_threads);
             std::mem::forget(subscriber);
             std::mem::forget(daemon_task);
             std::mem::forget(daemon);
@@ -881,9 +916,10 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
             Ok(result_without_daemon)
         }
         Ending::Graceful => {
-            gen_thread
-                .join()
-                .map_err(|_| anyhow::anyhow!("the generator panicked"))?;
+            for t in gen_threads {
+                t.join()
+                    .map_err(|_| anyhow::anyhow!("the generator panicked"))?;
+            }
             drop(subscriber);
             cancel.cancel();
             let counters = rt.block_on(async {
