@@ -37,7 +37,9 @@
 //! Paced: the fleet's messages are spread evenly over each period (vessel
 //! `v` of `N` at `v/N` of the period), the generator sleeping until each is
 //! due; a late generator publishes at once (never skips), and its largest
-//! lag is reported. Flat out: no pacing, the publishers' back-pressure
+//! lag is reported. For raw Zenoh the generator runs one thread per core,
+//! each pacing its own contiguous share of the fleet the same way (see
+//! [`measure`]). Flat out: no pacing, the publishers' back-pressure
 //! (`CongestionControl::Block`, as `twin-replay` publishes) sets the pace.
 
 use std::collections::BTreeMap;
