@@ -313,6 +313,77 @@ async fn three_vessels_at_once_do_not_talk_across() {
     }
 }
 
+/// The states received until the first one marked stale (which is last),
+/// and how long after `paused` it came; panics when none comes within
+/// `within`.
+async fn states_until_stale(
+    sub: &twin_tests::wire::Outputs,
+    paused: std::time::Instant,
+    within: Duration,
+) -> (Vec<StateMessage>, Duration) {
+    let samples = twin_tests::wire::receive_until(sub, within, |s| {
+        s.key_expr().as_str().ends_with("/twin/state")
+            && serde_json::from_slice::<StateMessage>(&s.payload().to_bytes())
+                .is_ok_and(|m| m.stale)
+    })
+    .await;
+    let waited = paused.elapsed();
+    let received = states(&samples);
+    assert!(
+        received.last().is_some_and(|m| m.stale),
+        "no stale state within {within:?}"
+    );
+    (received, waited)
+}
+
+/// GNSS dropout: a vessel whose fixes stop is published as stale once
+/// `stale_after_s` has passed (state and fault again, from the last fix),
+/// fresh again with its next fix, and stale again when the fixes stop
+/// again. The statistics' interval is long, so only a timer armed for the
+/// stale deadline can publish in time.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_vessel_whose_fixes_stop_is_published_stale_then_fresh_again() {
+    let stale_after = Duration::from_millis(400);
+    let settings = Settings::from_toml(&format!(
+        "[vessels]\nstale_after_s = {}\n[publish]\nstats_interval_s = 600.0\n",
+        stale_after.as_secs_f64()
+    ))
+    .unwrap();
+    let msgs = messages(&scenario("s-manoeuvre_new-new", 0.0, 31));
+    let (first, second) = msgs.split_at(msgs.len() / 2);
+    let rig = rig(settings).await;
+    let sub = rig.collect("delta").await;
+    // Ample for a loaded test machine; the periodic statistics (the only
+    // other wake) are ten minutes away.
+    let within = Duration::from_secs(20);
+
+    for (round, part) in [first, second].into_iter().enumerate() {
+        rig.publish("delta", part).await;
+        let paused = std::time::Instant::now();
+        let (mut received, waited) = states_until_stale(&sub, paused, within).await;
+        println!("round {round}: stale state {waited:?} after the last fix was sent");
+        assert!(
+            waited >= stale_after,
+            "round {round}: stale after {waited:?}, before {stale_after:?}"
+        );
+        // The stale state repeats the last fix's estimate ...
+        let upto = if round == 0 { first.len() } else { msgs.len() };
+        let expected = offline(&msgs[..upto]);
+        let last_fix = StateMessage::new("delta", &expected.state_report().unwrap(), true, true);
+        assert_eq!(received.pop().unwrap(), last_fix, "round {round}");
+        // ... after one fresh state per fix of this part.
+        let fixes = part.iter().filter(|(t, _)| *t == "gnss").count();
+        assert_eq!(received.len(), fixes, "round {round}");
+        assert!(received.iter().all(|m| !m.stale), "round {round}");
+        // Nothing fresh is published while the vessel is silent.
+        assert!(
+            states(&drain(&sub)).iter().all(|m| m.stale),
+            "round {round}: a fresh state without a fix"
+        );
+    }
+    rig.stop().await;
+}
+
 /// A table of bad inputs, each refused with its reason counted; the
 /// estimates at the end are exactly those of the good messages alone.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -115,6 +115,27 @@ pub struct VesselTask {
     /// A forecast fell due while one was being computed: ask again when it
     /// is out.
     forecast_wanted: bool,
+    /// A fix changed which deadline is the nearest: re-arm the timer.
+    rearm_timer: bool,
+}
+
+/// The wall-clock instants the task's periodic work counts from.
+struct WallTimers {
+    last_stats: Instant,
+    last_save: Instant,
+}
+
+/// Added to the timer's deadline so that the wake comes strictly after it.
+const TIMER_SLACK_S: f64 = 0.001;
+
+/// `start + seconds`, or a year after `start` when that is further or does
+/// not fit (the intervals are validated positive, not bounded).
+fn later(start: Instant, seconds: f64) -> Instant {
+    let year = Duration::from_secs(365 * 24 * 3600);
+    let d = Duration::try_from_secs_f64(seconds)
+        .unwrap_or(year)
+        .min(year);
+    start.checked_add(d).unwrap_or(start)
 }
 
 /// The answer of work handed to another thread (a diagnosis, a forecast):
@@ -210,6 +231,7 @@ impl VesselTask {
             forecaster,
             forecast: None,
             forecast_wanted: false,
+            rearm_timer: false,
         }
     }
 
@@ -242,11 +264,17 @@ impl VesselTask {
         } else {
             None
         };
-        let tick = Duration::from_millis(250);
-        let mut ticker = tokio::time::interval(tick);
-        ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-        let mut last_stats = Instant::now();
-        let mut last_save = Instant::now();
+        // One timer, armed for the earliest thing that can fall due (the
+        // stale state, the statistics, the save, the silence), rather than a
+        // periodic tick: a vessel sending fixes wakes for it about once per
+        // `stale_after_s`, not four times a second.
+        let started = Instant::now();
+        let mut timers = WallTimers {
+            last_stats: started,
+            last_save: started,
+        };
+        let timer = tokio::time::sleep_until(self.next_wake(&timers).into());
+        tokio::pin!(timer);
         loop {
             tokio::select! {
                 biased;
@@ -269,24 +297,30 @@ impl VesselTask {
                     Some(ev) => {
                         self.last_event_wall = Instant::now();
                         self.handle(ev, &outputs).await;
+                        // A fix after a stale state, or the first unsaved
+                        // one, brings a deadline nearer than the armed one.
+                        if std::mem::take(&mut self.rearm_timer) {
+                            timer.as_mut().reset(self.next_wake(&timers).into());
+                        }
                     }
                     None => break,
                 },
-                _ = ticker.tick() => {
+                () = &mut timer => {
                     let now = Instant::now();
                     if now.duration_since(self.last_event_wall).as_secs_f64() > self.settings.vessels.drop_after_silence_s {
                         tracing::info!(vessel = self.id.as_str(), "silent: dropping the vessel's twin");
                         break;
                     }
                     self.check_stale(&outputs).await;
-                    if now.duration_since(last_stats).as_secs_f64() >= self.settings.publish.stats_interval_s {
-                        last_stats = now;
+                    if now.duration_since(timers.last_stats).as_secs_f64() >= self.settings.publish.stats_interval_s {
+                        timers.last_stats = now;
                         self.publish_stats(&outputs).await;
                     }
-                    if self.unsaved && now.duration_since(last_save).as_secs_f64() >= self.settings.persistence.save_interval_s {
-                        last_save = now;
+                    if self.unsaved && now.duration_since(timers.last_save).as_secs_f64() >= self.settings.persistence.save_interval_s {
+                        timers.last_save = now;
                         self.save();
                     }
+                    timer.as_mut().reset(self.next_wake(&timers).into());
                 }
             }
         }
@@ -307,6 +341,25 @@ impl VesselTask {
         self.save();
         drop(token);
         self.counters
+    }
+
+    /// When the task's timer should next fire: the earliest of the silence
+    /// deadline, the next statistics, the next save (while something is
+    /// unsaved) and the stale deadline (while fixes come), plus a
+    /// millisecond so that the strict comparisons at the wake hold.
+    fn next_wake(&self, timers: &WallTimers) -> Instant {
+        let s = &self.settings;
+        let mut wake = later(self.last_event_wall, s.vessels.drop_after_silence_s)
+            .min(later(timers.last_stats, s.publish.stats_interval_s));
+        if self.unsaved {
+            wake = wake.min(later(timers.last_save, s.persistence.save_interval_s));
+        }
+        if let Some(last_fix) = self.last_fix_wall
+            && !self.stale_published
+        {
+            wake = wake.min(later(last_fix, s.vessels.stale_after_s));
+        }
+        later(wake, TIMER_SLACK_S)
     }
 
     fn output_keys(&self, keys: &twin_wire::KeySpace) -> zenoh::Result<OutputKeys> {
@@ -440,6 +493,9 @@ impl VesselTask {
     async fn on_fix(&mut self, fix: &GnssFix, p: &OutputKeys) {
         match self.twin.on_gnss(fix) {
             Ok(out) => {
+                // The armed timer was set without a stale or a save deadline.
+                self.rearm_timer |=
+                    self.stale_published || !self.unsaved || self.last_fix_wall.is_none();
                 self.last_fix_wall = Some(Instant::now());
                 self.stale_published = false;
                 self.unsaved = true;
