@@ -15,6 +15,7 @@ use twin_tests::wire::{
     simulate as scenario,
 };
 use twin_wire::outputs::{FaultMessage, FindingsMessage, PredictionMessage, StateMessage};
+use twind::forecast::{FaultPathLoad, SATURATED_AFTER};
 use twind::settings::Settings;
 use zenoh::Session;
 
@@ -31,12 +32,24 @@ async fn wait_matching(publisher: &zenoh::pubsub::Publisher<'_>) {
 }
 
 async fn rig(settings: Settings) -> Rig {
+    rig_observed(settings, FaultPathLoad::new()).await
+}
+
+/// [`rig`], the daemon's dispatcher reporting to `load`.
+async fn rig_observed(settings: Settings, load: FaultPathLoad) -> Rig {
     let port = free_port();
     let daemon = zenoh::open(config("peer", &[port], &[])).await.unwrap();
     let input = zenoh::open(config("peer", &[], &[port])).await.unwrap();
     let output = zenoh::open(config("peer", &[], &[port])).await.unwrap();
     let cancel = CancellationToken::new();
-    let handle = tokio::spawn(twind::run(settings, daemon.clone(), cancel.clone()));
+    let handle = tokio::spawn(twind::run_observed(
+        settings,
+        daemon.clone(),
+        cancel.clone(),
+        None,
+        twind::LatestStates::default(),
+        load,
+    ));
     Rig {
         daemon,
         input,
@@ -311,6 +324,29 @@ async fn three_vessels_at_once_do_not_talk_across() {
             &StateMessage::new(vessel, &expected.state_report().unwrap(), false, true)
         );
     }
+}
+
+/// The dispatcher tells the forecast threads whether it keeps up: once a
+/// trial has been routed and the daemon waits for input, the fault path
+/// does not count as saturated, however long it waits (else every forecast
+/// of a quiet daemon would be held back).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_daemon_waiting_for_input_does_not_count_as_saturated() {
+    let msgs = messages(&scenario("s-manoeuvre_new-new", 0.0, 41));
+    let load = FaultPathLoad::new();
+    let rig = rig_observed(Settings::default(), load.clone()).await;
+    let sub = rig.collect("echo").await;
+    rig.publish("echo", &msgs).await;
+    let expected = offline(&msgs);
+    let last = FaultMessage::new(
+        "echo",
+        &expected.fault_report(expected.state_report().unwrap().time_s),
+        true,
+    );
+    receive_until_fault(&sub, &last.time).await;
+    tokio::time::sleep(SATURATED_AFTER * 5).await;
+    assert!(!load.saturated());
+    rig.stop().await;
 }
 
 /// The states received until the first one marked stale (which is last),

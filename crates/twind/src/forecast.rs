@@ -21,10 +21,22 @@
 //! less often, never queue up, and never delay a fault; on an idle machine
 //! they come at `prediction_interval_s` as before. [`computed_total`] counts
 //! them, so that a benchmark can say how often they came.
+//!
+//! `SCHED_IDLE` alone did not keep them off the fault path near the
+//! daemon's limit (2026-11-22, eighth session): at 5,200 vessels x 10 Hz,
+//! with forecasts the faults' p50 was about 250 ms and the process used both
+//! cores; with the forecasts off, p50 2.6 ms and 10 % of the machine idle.
+//! An idle-policy thread still takes a CPU in the gaps between the busy
+//! threads' wake-ups, and the busy threads then ran slower. So the
+//! threads also wait while the fault path is saturated ([`FaultPathLoad`]:
+//! the dispatcher has been routing without finding its queue empty for
+//! [`SATURATED_AFTER`]),
+//! each job at most [`MAX_YIELD`], so that forecasts never stop altogether.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc;
 use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 use tokio::sync::oneshot;
 use twin_core::twin::VesselTwin;
@@ -37,6 +49,91 @@ static COMPUTED: AtomicU64 = AtomicU64::new(0);
 /// (with an estimate to start from), since it started.
 pub fn computed_total() -> u64 {
     COMPUTED.load(Ordering::Relaxed)
+}
+
+/// The fault path counts as saturated when the dispatcher has not found
+/// its queue empty for this long.
+pub const SATURATED_AFTER: Duration = Duration::from_millis(20);
+
+/// The longest a forecast thread waits, per job, for the fault path to
+/// stop being saturated before it computes the forecast anyway.
+pub const MAX_YIELD: Duration = Duration::from_secs(1);
+
+/// How often a waiting forecast thread looks at the fault path again.
+const YIELD_POLL: Duration = Duration::from_millis(2);
+
+/// Whether the fault path keeps up, as the forecast threads see it. The
+/// dispatcher says when it finds its input queue empty and waits (it has
+/// caught up) and when it starts routing again; it is saturated once it
+/// has been routing without a break for [`SATURATED_AFTER`]. Cloning
+/// shares it.
+#[derive(Clone, Debug)]
+pub struct FaultPathLoad {
+    inner: Arc<LoadInner>,
+}
+
+#[derive(Debug)]
+struct LoadInner {
+    epoch: Instant,
+    /// Since when the dispatcher has been routing without finding its
+    /// queue empty, us after `epoch`; [`WAITING`] while it waits.
+    busy_since_us: AtomicU64,
+}
+
+/// `busy_since_us` while the dispatcher waits for input.
+const WAITING: u64 = u64::MAX;
+
+impl Default for FaultPathLoad {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl FaultPathLoad {
+    /// A gauge whose dispatcher waits for input.
+    pub fn new() -> Self {
+        Self {
+            inner: Arc::new(LoadInner {
+                epoch: Instant::now(),
+                busy_since_us: AtomicU64::new(WAITING),
+            }),
+        }
+    }
+
+    fn now_us(&self) -> u64 {
+        // Saturates after 584,000 years.
+        u64::try_from(self.inner.epoch.elapsed().as_micros()).unwrap_or(WAITING - 1)
+    }
+
+    /// The dispatcher found its queue empty and waits: it keeps up.
+    pub fn note_waiting(&self) {
+        self.inner.busy_since_us.store(WAITING, Ordering::Relaxed);
+    }
+
+    /// The dispatcher has input again after waiting.
+    pub fn note_routing(&self) {
+        self.inner
+            .busy_since_us
+            .store(self.now_us(), Ordering::Relaxed);
+    }
+
+    /// Whether the dispatcher has been routing without a break for longer
+    /// than [`SATURATED_AFTER`].
+    pub fn saturated(&self) -> bool {
+        match self.inner.busy_since_us.load(Ordering::Relaxed) {
+            WAITING => false,
+            since_us => self.now_us().saturating_sub(since_us) > SATURATED_AFTER.as_micros() as u64,
+        }
+    }
+
+    /// Waits (sleeping) while the fault path is saturated, at most
+    /// `at_most`.
+    fn yield_while_saturated(&self, at_most: Duration) {
+        let start = Instant::now();
+        while self.saturated() && start.elapsed() < at_most {
+            std::thread::sleep(YIELD_POLL);
+        }
+    }
 }
 
 /// One forecast to compute.
@@ -64,12 +161,14 @@ pub struct Forecaster {
 }
 
 impl Forecaster {
-    /// Starts `threads` forecast threads (at least one).
-    pub fn start(threads: usize) -> std::io::Result<Self> {
+    /// Starts `threads` forecast threads (at least one), yielding to the
+    /// fault path while `load` says it is saturated.
+    pub fn start(threads: usize, load: FaultPathLoad) -> std::io::Result<Self> {
         let (jobs, queue) = mpsc::channel::<ForecastJob>();
         let queue = Arc::new(Mutex::new(queue));
         for i in 0..threads.max(1) {
             let queue = queue.clone();
+            let load = load.clone();
             std::thread::Builder::new()
                 .name(format!("twind-forecast-{i}"))
                 .spawn(move || {
@@ -81,6 +180,7 @@ impl Forecaster {
                             Err(_) => return,
                         };
                         let Ok(job) = job else { return };
+                        load.yield_while_saturated(MAX_YIELD);
                         let json = prediction_json(&job);
                         if json.is_some() {
                             COMPUTED.fetch_add(1, Ordering::Relaxed);
@@ -178,7 +278,7 @@ mod tests {
     #[test]
     fn forecasts_on_the_threads_equal_the_inline_ones() {
         let twin = twin_with_fixes();
-        let forecaster = Forecaster::start(2).unwrap();
+        let forecaster = Forecaster::start(2, FaultPathLoad::new()).unwrap();
         let (reply, answer) = oneshot::channel();
         let job = |reply| ForecastJob {
             twin: Box::new(twin.clone()),
@@ -199,6 +299,59 @@ mod tests {
         let msg: serde_json::Value = serde_json::from_slice(&threaded).unwrap();
         assert_eq!(msg["points"].as_array().unwrap().len(), 60);
         drop(forecaster);
+    }
+
+    /// The gauge says "saturated" only once the dispatcher has routed
+    /// without finding its queue empty for longer than [`SATURATED_AFTER`],
+    /// and never while it waits.
+    #[test]
+    fn the_fault_path_is_saturated_only_after_routing_without_a_break() {
+        let load = FaultPathLoad::new();
+        assert!(!load.saturated(), "a new gauge waits");
+        std::thread::sleep(SATURATED_AFTER * 2);
+        assert!(!load.saturated(), "waiting is never saturated");
+        load.note_routing();
+        assert!(!load.saturated(), "routing for a moment");
+        std::thread::sleep(SATURATED_AFTER * 2);
+        assert!(load.saturated(), "routing without a break");
+        load.clone().note_waiting();
+        assert!(!load.saturated(), "caught up (seen through a clone)");
+    }
+
+    /// While the fault path is saturated a forecast waits, but at most
+    /// [`MAX_YIELD`]: forecasts never stop altogether.
+    #[test]
+    fn forecasts_wait_while_the_fault_path_is_saturated_but_not_forever() {
+        let load = FaultPathLoad::new();
+        load.note_routing();
+        std::thread::sleep(SATURATED_AFTER * 2);
+        let forecaster = Forecaster::start(1, load.clone()).unwrap();
+        let (reply, mut answer) = oneshot::channel();
+        let submitted = Instant::now();
+        forecaster
+            .submit(ForecastJob {
+                twin: Box::new(twin_with_fixes()),
+                vessel: "otter-1".into(),
+                horizon_s: 60.0,
+                step_s: 1.0,
+                replay: false,
+                reply,
+            })
+            .map_err(|_| "submit")
+            .unwrap();
+        std::thread::sleep(MAX_YIELD / 5);
+        assert!(
+            matches!(answer.try_recv(), Err(oneshot::error::TryRecvError::Empty)),
+            "computed while the fault path was saturated"
+        );
+        assert!(load.saturated());
+        let json = answer.blocking_recv().unwrap();
+        assert!(json.is_some(), "a prediction after the longest wait");
+        assert!(
+            submitted.elapsed() >= MAX_YIELD,
+            "{:?}",
+            submitted.elapsed()
+        );
     }
 
     /// A twin that has seen no fix has nothing to forecast: `None`, no panic.

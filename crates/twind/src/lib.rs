@@ -11,7 +11,9 @@
 //! - [`stats`]: counting and rate-limited logging of rejections.
 //! - [`run`] (here): the dispatcher: one Zenoh subscriber for every input
 //!   topic of the vessels this daemon owns, routing each message, in arrival
-//!   order, to its vessel's task; the queryable for the latest states; and
+//!   order, to its vessel's task, and saying whether it keeps up (the
+//!   forecast threads yield to it while it does not:
+//!   [`forecast::FaultPathLoad`]); the queryable for the latest states; and
 //!   the graceful shutdown.
 //!
 //! # Shutdown
@@ -86,6 +88,20 @@ pub fn input_key_expr(settings: &Settings) -> String {
     format!("{}/{}/*", settings.keys.prefix(), settings.vessels.own)
 }
 
+/// A vessel task has ended: its counters go into the summary, and its queue
+/// leaves the map unless a new task for the vessel has replaced it.
+fn forget_ended(
+    vessels: &mut HashMap<String, mpsc::Sender<VesselEvent>>,
+    summary: &mut RunSummary,
+    vessel: String,
+    counters: Counters,
+) {
+    if vessels.get(&vessel).is_some_and(|tx| tx.is_closed()) {
+        vessels.remove(&vessel);
+    }
+    summary.vessels.insert(vessel, counters);
+}
+
 /// Runs the daemon on an open Zenoh `session` until `shutdown` is cancelled.
 pub async fn run(
     settings: Settings,
@@ -104,6 +120,20 @@ pub async fn run_with_tap(
     tap: OutputTap,
     latest: LatestStates,
 ) -> anyhow::Result<RunSummary> {
+    let load = crate::forecast::FaultPathLoad::new();
+    run_observed(settings, session, shutdown, tap, latest, load).await
+}
+
+/// [`run_with_tap`], with the dispatcher reporting whether it keeps up to
+/// `load` (which the forecast threads yield to, and the caller can read).
+pub async fn run_observed(
+    settings: Settings,
+    session: Session,
+    shutdown: CancellationToken,
+    tap: OutputTap,
+    latest: LatestStates,
+    load: crate::forecast::FaultPathLoad,
+) -> anyhow::Result<RunSummary> {
     let settings = Arc::new(settings);
     let subscriber = session
         .declare_subscriber(input_key_expr(&settings))
@@ -121,8 +151,9 @@ pub async fn run_with_tap(
         .map_err(|e| anyhow::anyhow!("cannot declare the queryable {state_key}: {e}"))?;
     tracing::info!(inputs = %input_key_expr(&settings), "twind running");
 
-    let forecaster = crate::forecast::Forecaster::start(settings.publish.forecast_threads)
-        .map_err(|e| anyhow::anyhow!("cannot start the forecast threads: {e}"))?;
+    let forecaster =
+        crate::forecast::Forecaster::start(settings.publish.forecast_threads, load.clone())
+            .map_err(|e| anyhow::anyhow!("cannot start the forecast threads: {e}"))?;
     let tracker = TaskTracker::new();
     let (done_tx, mut done_rx) = mpsc::unbounded_channel::<(String, Counters)>();
     let mut vessels: HashMap<String, mpsc::Sender<VesselEvent>> = HashMap::new();
@@ -168,26 +199,44 @@ pub async fn run_with_tap(
     };
 
     let mut draining = false;
+    load.note_routing();
     loop {
-        let sample = if draining {
-            // Shutting down: route what Zenoh already delivered, then stop.
-            match subscriber.try_recv() {
-                Ok(Some(s)) => s,
-                _ => break,
-            }
-        } else {
-            tokio::select! {
-                _ = shutdown.cancelled() => {
+        // A sample already waiting is taken without a wait; only when the
+        // queue is empty has the dispatcher caught up (the forecast threads
+        // yield to it until then) and does it wait for what comes first.
+        let sample = match subscriber.try_recv() {
+            Ok(Some(s)) => {
+                if !draining && shutdown.is_cancelled() {
                     draining = true;
-                    continue;
                 }
-                Some((vessel, counters)) = done_rx.recv() => {
-                    vessels.remove(&vessel);
-                    summary.vessels.insert(vessel, counters);
-                    continue;
+                while let Ok((vessel, counters)) = done_rx.try_recv() {
+                    forget_ended(&mut vessels, &mut summary, vessel, counters);
                 }
-                s = subscriber.recv_async() => match s { Ok(s) => s, Err(_) => break },
+                s
             }
+            // Shutting down: what Zenoh already delivered is routed; stop.
+            Ok(None) if draining => break,
+            Ok(None) => {
+                load.note_waiting();
+                tokio::select! {
+                    _ = shutdown.cancelled() => {
+                        draining = true;
+                        continue;
+                    }
+                    Some((vessel, counters)) = done_rx.recv() => {
+                        forget_ended(&mut vessels, &mut summary, vessel, counters);
+                        continue;
+                    }
+                    s = subscriber.recv_async() => match s {
+                        Ok(s) => {
+                            load.note_routing();
+                            s
+                        }
+                        Err(_) => break,
+                    },
+                }
+            }
+            Err(_) => break,
         };
         let key = sample.key_expr().as_str();
         let (id, topic) = match settings.keys.parse(key) {
