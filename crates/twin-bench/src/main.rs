@@ -63,7 +63,7 @@ struct DaemonArgs {
     /// Measurement window of each scaling point, s (default 10, with --quick 3).
     #[arg(long)]
     window_s: Option<f64>,
-    /// Least warm-up before each window, s (default 1.5, with --quick 1).
+    /// Least warm-up before each window, s (default 5, with --quick 1).
     #[arg(long)]
     warmup_s: Option<f64>,
     /// Fleet of the flat-out runs.
