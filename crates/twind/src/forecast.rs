@@ -18,20 +18,20 @@
 //! and gets back the prediction's JSON; it keeps at most one forecast in
 //! flight, and when the next is due before that one is out it asks again as
 //! soon as it is (from its newest estimate). So under load forecasts come
-//! less often, never queue up, and never delay a fault; on an idle machine
-//! they come at `prediction_interval_s` as before. [`computed_total`] counts
+//! less often and never queue up; on an idle machine they come at
+//! `prediction_interval_s` as before. [`computed_total`] counts
 //! them, so that a benchmark can say how often they came.
 //!
 //! `SCHED_IDLE` alone did not keep them off the fault path near the
-//! daemon's limit (2026-11-22, eighth session): at 5,200 vessels x 10 Hz,
-//! with forecasts the faults' p50 was about 250 ms and the process used both
-//! cores; with the forecasts off, p50 2.6 ms and 10 % of the machine idle.
-//! An idle-policy thread still takes a CPU in the gaps between the busy
-//! threads' wake-ups, and the busy threads then ran slower. So the
-//! threads also wait while the fault path is saturated ([`FaultPathLoad`]:
-//! the dispatcher has been routing without finding its queue empty for
-//! [`SATURATED_AFTER`]),
-//! each job at most [`MAX_YIELD`], so that forecasts never stop altogether.
+//! daemon's limit (2026-11-22, eighth session): at 5,200 vessels x 10 Hz the
+//! faults' p50 was 98-278 ms with forecasts (none of five runs sustained)
+//! and down to 2.6 ms with them off. An idle-policy thread still takes a CPU
+//! in the gaps between the busy threads' wake-ups, and the busy threads
+//! then ran slower. So the threads also wait while the fault path is
+//! saturated ([`FaultPathLoad`]: the dispatcher has been routing without
+//! finding its queue empty for [`SATURATED_AFTER`]), each job at most
+//! [`MAX_YIELD`], so that forecasts never stop altogether: on a saturated
+//! daemon, one per thread per second (docs/daemon-performance.md).
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc;

@@ -128,8 +128,10 @@ struct WallTimers {
 /// Added to the timer's deadline so that the wake comes strictly after it.
 const TIMER_SLACK_S: f64 = 0.001;
 
-/// `start + seconds`, or a year after `start` when that is further or does
-/// not fit (the intervals are validated positive, not bounded).
+/// `start + seconds`, or a year after `start` when that is further (the
+/// intervals are validated positive, not bounded); `start` itself only if
+/// even that does not fit in an `Instant`, which a clock counting from boot
+/// does not reach.
 fn later(start: Instant, seconds: f64) -> Instant {
     let year = Duration::from_secs(365 * 24 * 3600);
     let d = Duration::try_from_secs_f64(seconds)
