@@ -35,6 +35,7 @@ BLOCKS = {
     "bench-analyze": "cargo bench -q -p twin-cli --bench analyze 2>/dev/null | grep -E '^analyze/|time:'",
     "bench-daemon": "cargo run --release -q -p twin-bench -- daemon 2>/dev/null",
     "bench-daemon-no-liveliness": "cargo run --release -q -p twin-bench -- daemon --no-vessel-liveliness 2>/dev/null",
+    "bench-daemon-liveliness-outside": "cargo run --release -q -p twin-bench -- daemon --liveliness-outside-prefix 2>/dev/null",
     # The 100-vessel page test (needs Chromium and `npm ci` in web/); its
     # measurement line, made a table by `fleet_table` below.
     "web-fleet": "cd web && node --test tests/fleet.test.js 2>/dev/null | grep -o 'fleet page measurement: .*'",

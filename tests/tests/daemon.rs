@@ -11,7 +11,7 @@ use tokio_util::sync::CancellationToken;
 use twin_core::diagnose::MonitorConfig;
 use twin_tests::net::{config, free_port};
 use twin_tests::wire::{
-    Messages, messages, offline, receive_until_fault, scenario as scenario_file,
+    Messages, messages, offline, receive_until, receive_until_fault, scenario as scenario_file,
     simulate as scenario,
 };
 use twin_wire::outputs::{FaultMessage, FindingsMessage, PredictionMessage, StateMessage};
@@ -346,6 +346,43 @@ async fn a_daemon_waiting_for_input_does_not_count_as_saturated() {
     receive_until_fault(&sub, &last.time).await;
     tokio::time::sleep(SATURATED_AFTER * 5).await;
     assert!(!load.saturated());
+    rig.stop().await;
+}
+
+/// The keys of the liveliness tokens that `session` sees under `key`.
+async fn alive(session: &Session, key: &str) -> Vec<String> {
+    session
+        .liveliness()
+        .get(key)
+        .await
+        .unwrap()
+        .into_iter()
+        .filter_map(|r| r.into_result().ok())
+        .map(|s| s.key_expr().as_str().to_string())
+        .collect()
+}
+
+/// `publish.vessel_liveliness_key` moves each twin's liveliness token out
+/// of the data prefix (for large fleets): the token is at the configured
+/// key while the twin runs, and none is under the contract's key.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_liveliness_token_can_move_out_of_the_data_prefix() {
+    let settings =
+        Settings::from_toml("[publish]\nvessel_liveliness_key = \"asv-twins/alive/{vessel}\"\n")
+            .unwrap();
+    let msgs = messages(&scenario("s-manoeuvre_new-new", 0.0, 51));
+    let rig = rig(settings).await;
+    let sub = rig.collect("golf").await;
+    rig.publish("golf", &msgs[..20]).await;
+    receive_until(&sub, Duration::from_secs(30), |s| {
+        s.key_expr().as_str().ends_with("/twin/fault")
+    })
+    .await;
+    assert_eq!(
+        alive(&rig.output, "asv-twins/alive/*").await,
+        ["asv-twins/alive/golf"]
+    );
+    assert!(alive(&rig.output, "asv/*/twin/alive").await.is_empty());
     rig.stop().await;
 }
 

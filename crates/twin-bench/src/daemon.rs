@@ -113,6 +113,9 @@ pub struct DaemonOptions {
     pub exe: PathBuf,
     /// The daemon's `publish.vessel_liveliness` (default true, the contract).
     pub vessel_liveliness: bool,
+    /// The tokens outside the data prefix
+    /// ([`load::OUTSIDE_PREFIX_LIVELINESS_KEY`]).
+    pub liveliness_outside_prefix: bool,
 }
 
 impl DaemonOptions {
@@ -132,6 +135,7 @@ impl DaemonOptions {
                 quick,
                 exe,
                 vessel_liveliness: true,
+                liveliness_outside_prefix: false,
             }
         } else {
             Self {
@@ -147,6 +151,7 @@ impl DaemonOptions {
                 quick,
                 exe,
                 vessel_liveliness: true,
+                liveliness_outside_prefix: false,
             }
         }
     }
@@ -218,6 +223,9 @@ pub fn run_point_in_child(exe: &std::path::Path, spec: &PointSpec) -> anyhow::Re
     if !spec.vessel_liveliness {
         cmd.arg("--no-vessel-liveliness");
     }
+    if spec.liveliness_outside_prefix {
+        cmd.arg("--liveliness-outside-prefix");
+    }
     match spec.rate_hz {
         Some(r) => cmd.arg("--rate-hz").arg(r.to_string()),
         None => cmd.arg("--flat-out"),
@@ -281,6 +289,7 @@ pub fn run_with(
                 window_s: opts.window_s,
                 grace_s: opts.grace_s,
                 vessel_liveliness: opts.vessel_liveliness,
+                liveliness_outside_prefix: opts.liveliness_outside_prefix,
             };
             let r = point(&spec)?;
             progress(
@@ -327,6 +336,7 @@ pub fn run_with(
                 window_s: opts.ramp_window_s,
                 grace_s: opts.grace_s,
                 vessel_liveliness: opts.vessel_liveliness,
+                liveliness_outside_prefix: opts.liveliness_outside_prefix,
             })?;
             progress(
                 start,
@@ -355,6 +365,7 @@ pub fn run_with(
             window_s: opts.saturation_window_s,
             grace_s: opts.grace_s,
             vessel_liveliness: opts.vessel_liveliness,
+            liveliness_outside_prefix: opts.liveliness_outside_prefix,
         })?;
         progress(
             start,
@@ -789,7 +800,11 @@ impl DaemonReport {
 
     fn notes(&self) -> Vec<String> {
         let mut notes = Vec::new();
-        let settings = load::bench_settings(self.options.vessel_liveliness).ok();
+        let settings = load::bench_settings(
+            self.options.vessel_liveliness,
+            self.options.liveliness_outside_prefix,
+        )
+        .ok();
         if let Some(st) = &settings {
             notes.push(format!(
                 "Daemon settings: `config/twind.toml` defaults except `[diagnose] enabled = false` \
@@ -806,7 +821,13 @@ impl DaemonReport {
                 st.publish.forecast_threads,
                 st.vessels.queue_depth
             ));
-            notes.push(if st.publish.vessel_liveliness {
+            notes.push(if let (true, Some(key)) = (st.publish.vessel_liveliness, &st.publish.vessel_liveliness_key) {
+                format!(
+                    "Liveliness: one token per vessel at `{key}`, outside the data prefix \
+                     (`publish.vessel_liveliness_key`, `--liveliness-outside-prefix`), instead of the \
+                     contract's `asv/{{vessel}}/twin/alive`."
+                )
+            } else if st.publish.vessel_liveliness {
                 "Liveliness: one token per vessel at `asv/{vessel}/twin/alive` (the contract; \
                  `publish.vessel_liveliness = true`). With Zenoh 1.10 every token under `asv/` slows \
                  the routing of every message under it; `--no-vessel-liveliness` measures the daemon \

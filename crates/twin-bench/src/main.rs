@@ -73,6 +73,10 @@ struct DaemonArgs {
     /// vessel under the prefix).
     #[arg(long)]
     no_vessel_liveliness: bool,
+    /// Declare the tokens at `asv-twins/alive/{vessel}`, outside the data prefix
+    /// (`publish.vessel_liveliness_key`), instead of the contract's key.
+    #[arg(long, conflicts_with = "no_vessel_liveliness")]
+    liveliness_outside_prefix: bool,
 }
 
 fn run_daemon(args: DaemonArgs) -> anyhow::Result<ExitCode> {
@@ -106,6 +110,7 @@ fn run_daemon(args: DaemonArgs) -> anyhow::Result<ExitCode> {
     );
     opts.saturation_vessels = args.saturation_vessels;
     opts.vessel_liveliness = !args.no_vessel_liveliness;
+    opts.liveliness_outside_prefix = args.liveliness_outside_prefix;
     let report = twin_bench::daemon::run(&opts)?;
     print!("{}", report.table());
     // A missed target is reported, not an error.
@@ -134,6 +139,8 @@ struct DaemonPointArgs {
     grace_s: f64,
     #[arg(long)]
     no_vessel_liveliness: bool,
+    #[arg(long, conflicts_with = "no_vessel_liveliness")]
+    liveliness_outside_prefix: bool,
 }
 
 fn run_daemon_point(args: DaemonPointArgs) -> anyhow::Result<ExitCode> {
@@ -145,6 +152,7 @@ fn run_daemon_point(args: DaemonPointArgs) -> anyhow::Result<ExitCode> {
         window_s: args.window_s,
         grace_s: args.grace_s,
         vessel_liveliness: !args.no_vessel_liveliness,
+        liveliness_outside_prefix: args.liveliness_outside_prefix,
     };
     // A watchdog: a point that hangs must not hang the whole run.
     let limit = spec.warmup_s * load::WARMUP_CAP + spec.window_s + spec.grace_s + 90.0;

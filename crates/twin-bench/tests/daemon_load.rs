@@ -17,6 +17,7 @@ fn spec(path: Path) -> PointSpec {
         // Generous: a loaded machine must not fail the test.
         grace_s: 2.0,
         vessel_liveliness: true,
+        liveliness_outside_prefix: false,
     }
 }
 

@@ -98,6 +98,7 @@ struct RawPublish {
     prediction_step_s: Option<f64>,
     stats_interval_s: Option<f64>,
     vessel_liveliness: Option<bool>,
+    vessel_liveliness_key: Option<String>,
     forecast_threads: Option<usize>,
 }
 
@@ -148,7 +149,7 @@ pub struct VesselSettings {
 }
 
 /// What is published and how often.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct PublishSettings {
     /// A forecast is published each time this much message time has passed, s.
     pub prediction_interval_s: f64,
@@ -165,6 +166,14 @@ pub struct PublishSettings {
     /// (`twin-bench daemon` measures both); `twin/state` and its `stale`
     /// flag still say whether a twin runs.
     pub vessel_liveliness: bool,
+    /// The token's key with `{vessel}` for the vessel id, where it is not
+    /// the contract's `{prefix}/{vessel}/twin/alive` (`None`). A key outside
+    /// the data prefix with the vessel's chunk two levels down, e.g.
+    /// `asv-twins/alive/{vessel}`, keeps liveliness for a large fleet
+    /// without most of the routing cost: Zenoh 1.10 still looks at every
+    /// child of a top-level node, so `asv-alive/{vessel}` would not
+    /// (docs/daemon-performance.md).
+    pub vessel_liveliness_key: Option<String>,
     /// Threads computing the forecasts, at a lower scheduling priority than
     /// the rest of the daemon (see `forecast`); 0 in the file means half the
     /// cores, at least one.
@@ -225,6 +234,37 @@ pub struct Settings {
 impl Default for Settings {
     fn default() -> Self {
         Self::from_raw(RawSettings::default()).expect("the defaults are valid")
+    }
+}
+
+/// A liveliness key template: `{vessel}` exactly once, and with a vessel id
+/// in its place a plain Zenoh key (no wildcards, no `$`).
+fn liveliness_key_template(template: String) -> Result<String, SettingsError> {
+    let invalid = |reason: String| SettingsError::Invalid {
+        key: "publish.vessel_liveliness_key",
+        reason,
+    };
+    if template.matches("{vessel}").count() != 1 {
+        return Err(invalid(format!(
+            "{template:?}: must hold {{vessel}} exactly once"
+        )));
+    }
+    let example = template.replace("{vessel}", "v0");
+    if example.contains(['*', '$']) {
+        return Err(invalid(format!("{template:?}: no wildcards")));
+    }
+    zenoh::key_expr::KeyExpr::try_from(example.as_str())
+        .map_err(|e| invalid(format!("{template:?} is not a key expression: {e}")))?;
+    Ok(template)
+}
+
+impl PublishSettings {
+    /// The liveliness token's key for `vessel`.
+    pub fn liveliness_key(&self, keys: &KeySpace, vessel: &twin_wire::VesselId) -> String {
+        match &self.vessel_liveliness_key {
+            Some(template) => template.replace("{vessel}", vessel.as_str()),
+            None => keys.twin_alive(vessel),
+        }
     }
 }
 
@@ -337,6 +377,10 @@ impl Settings {
                 raw.publish.stats_interval_s.unwrap_or(5.0),
             )?,
             vessel_liveliness: raw.publish.vessel_liveliness.unwrap_or(true),
+            vessel_liveliness_key: match raw.publish.vessel_liveliness_key {
+                Some(template) => Some(liveliness_key_template(template)?),
+                None => None,
+            },
             forecast_threads: match raw.publish.forecast_threads.unwrap_or(0) {
                 0 => std::thread::available_parallelism()
                     .map(|n| (n.get() / 2).max(1))
@@ -489,6 +533,42 @@ mod tests {
         assert!(file.publish.vessel_liveliness);
         let off = Settings::from_toml("[publish]\nvessel_liveliness = false\n").unwrap();
         assert!(!off.publish.vessel_liveliness);
+    }
+
+    /// The token's key is the contract's unless a template moves it; bad
+    /// templates are refused with the key named.
+    #[test]
+    fn the_liveliness_key_is_the_contracts_unless_moved() {
+        let v = twin_wire::VesselId::new("otter-1").unwrap();
+        let s = Settings::default();
+        assert_eq!(
+            s.publish.liveliness_key(&s.keys, &v),
+            "asv/otter-1/twin/alive"
+        );
+        let moved = Settings::from_toml(
+            "[publish]\nvessel_liveliness_key = \"asv-twins/alive/{vessel}\"\n",
+        )
+        .unwrap();
+        assert_eq!(
+            moved.publish.liveliness_key(&moved.keys, &v),
+            "asv-twins/alive/otter-1"
+        );
+        for bad in [
+            "asv-alive",
+            "a/{vessel}/{vessel}",
+            "a/*/{vessel}",
+            "a//{vessel}",
+            "$x/{vessel}",
+        ] {
+            let err =
+                Settings::from_toml(&format!("[publish]\nvessel_liveliness_key = \"{bad}\"\n"))
+                    .unwrap_err()
+                    .to_string();
+            assert!(
+                err.contains("publish.vessel_liveliness_key"),
+                "{bad}: {err}"
+            );
+        }
     }
 
     #[test]

@@ -257,7 +257,7 @@ impl VesselTask {
             let token = self
                 .session
                 .liveliness()
-                .declare_token(keys.twin_alive(&self.id))
+                .declare_token(self.settings.publish.liveliness_key(&keys, &self.id))
                 .await;
             if let Err(e) = &token {
                 tracing::warn!(vessel = self.id.as_str(), "no liveliness token: {e}");

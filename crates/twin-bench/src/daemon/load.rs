@@ -100,7 +100,15 @@ pub struct PointSpec {
     /// The daemon's `publish.vessel_liveliness`: a liveliness token per
     /// vessel under the prefix (the contract) or none.
     pub vessel_liveliness: bool,
+    /// The tokens at [`OUTSIDE_PREFIX_LIVELINESS_KEY`] instead of the
+    /// contract's key (`publish.vessel_liveliness_key`).
+    #[serde(default)]
+    pub liveliness_outside_prefix: bool,
 }
+
+/// The liveliness key measured with `--liveliness-outside-prefix`, as
+/// docs/deploy.md suggests for a large fleet.
+pub const OUTSIDE_PREFIX_LIVELINESS_KEY: &str = "asv-twins/alive/{vessel}";
 
 /// How a point ends.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -278,9 +286,17 @@ impl PointResult {
 /// diagnose off (it runs `twin diagnose` on each vessel's recent past on a
 /// blocking thread every few minutes of message time: seconds of CPU each,
 /// unrelated to the per-fix path measured here).
-pub fn bench_settings(vessel_liveliness: bool) -> anyhow::Result<twind::settings::Settings> {
+pub fn bench_settings(
+    vessel_liveliness: bool,
+    liveliness_outside_prefix: bool,
+) -> anyhow::Result<twind::settings::Settings> {
+    let key = if liveliness_outside_prefix {
+        format!("vessel_liveliness_key = \"{OUTSIDE_PREFIX_LIVELINESS_KEY}\"\n")
+    } else {
+        String::new()
+    };
     Ok(twind::settings::Settings::from_toml(&format!(
-        "[diagnose]\nenabled = false\n[publish]\nvessel_liveliness = {vessel_liveliness}\n"
+        "[diagnose]\nenabled = false\n[publish]\nvessel_liveliness = {vessel_liveliness}\n{key}"
     ))?)
 }
 
@@ -643,7 +659,7 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
     let circle = Circle::from_simulator(FLEET_SPEED_MPS)?;
     let fleet = Fleet::new(circle, n)?;
     let keys = KeySpace::new("asv")?;
-    let settings = bench_settings(spec.vessel_liveliness)?;
+    let settings = bench_settings(spec.vessel_liveliness, spec.liveliness_outside_prefix)?;
 
     // The daemon's runtime: tokio's multi-threaded scheduler with a worker
     // per core, as `twind`'s `#[tokio::main]` has.
