@@ -245,7 +245,14 @@ pub fn run_point_in_child(exe: &std::path::Path, spec: &PointSpec) -> anyhow::Re
         .lines()
         .find_map(|l| l.strip_prefix(POINT_PREFIX))
         .ok_or_else(|| anyhow::anyhow!("the point {spec:?} printed no result: {stdout}"))?;
-    serde_json::from_str(line).context("reading a point's result")
+    let result: PointResult = serde_json::from_str(line).context("reading a point's result")?;
+    // A setting lost on the way to the child would label its figures wrongly.
+    anyhow::ensure!(
+        result.spec == *spec,
+        "the point ran {:?}, not the {spec:?} asked for",
+        result.spec
+    );
+    Ok(result)
 }
 
 /// The prefix of the result line a `daemon-point` child prints.
