@@ -120,9 +120,14 @@ impl FaultPathLoad {
     /// Whether the dispatcher has been routing without a break for longer
     /// than [`SATURATED_AFTER`].
     pub fn saturated(&self) -> bool {
+        self.saturated_at(self.now_us())
+    }
+
+    /// [`Self::saturated`] at `now_us` (us after the gauge's epoch).
+    fn saturated_at(&self, now_us: u64) -> bool {
         match self.inner.busy_since_us.load(Ordering::Relaxed) {
             WAITING => false,
-            since_us => self.now_us().saturating_sub(since_us) > SATURATED_AFTER.as_micros() as u64,
+            since_us => now_us.saturating_sub(since_us) > SATURATED_AFTER.as_micros() as u64,
         }
     }
 
@@ -306,16 +311,28 @@ mod tests {
     /// and never while it waits.
     #[test]
     fn the_fault_path_is_saturated_only_after_routing_without_a_break() {
+        let limit_us = SATURATED_AFTER.as_micros() as u64;
         let load = FaultPathLoad::new();
-        assert!(!load.saturated(), "a new gauge waits");
-        std::thread::sleep(SATURATED_AFTER * 2);
-        assert!(!load.saturated(), "waiting is never saturated");
+        assert!(
+            !load.saturated_at(10 * limit_us),
+            "waiting is never saturated"
+        );
         load.note_routing();
-        assert!(!load.saturated(), "routing for a moment");
+        let since_us = load.inner.busy_since_us.load(Ordering::Relaxed);
+        assert!(
+            !load.saturated_at(since_us + limit_us / 2),
+            "routing for a moment"
+        );
+        assert!(
+            load.saturated_at(since_us + 2 * limit_us),
+            "routing without a break"
+        );
+        // And on the clock: after a real wait of twice the limit.
         std::thread::sleep(SATURATED_AFTER * 2);
-        assert!(load.saturated(), "routing without a break");
+        assert!(load.saturated());
         load.clone().note_waiting();
         assert!(!load.saturated(), "caught up (seen through a clone)");
+        assert!(!load.saturated_at(since_us + 10 * limit_us));
     }
 
     /// While the fault path is saturated a forecast waits, but at most
