@@ -828,22 +828,21 @@ impl DaemonReport {
                 st.publish.forecast_threads,
                 st.vessels.queue_depth
             ));
-            notes.push(if let (true, Some(key)) = (st.publish.vessel_liveliness, &st.publish.vessel_liveliness_key) {
-                format!(
+            let publish = &st.publish;
+            notes.push(match (publish.vessel_liveliness, &publish.vessel_liveliness_key) {
+                (true, Some(key)) => format!(
                     "Liveliness: one token per vessel at `{key}`, outside the data prefix \
                      (`publish.vessel_liveliness_key`, `--liveliness-outside-prefix`), instead of the \
                      contract's `asv/{{vessel}}/twin/alive`."
-                )
-            } else if st.publish.vessel_liveliness {
-                "Liveliness: one token per vessel at `asv/{vessel}/twin/alive` (the contract; \
+                ),
+                (true, None) => "Liveliness: one token per vessel at `asv/{vessel}/twin/alive` (the contract; \
                  `publish.vessel_liveliness = true`). With Zenoh 1.10 every token under `asv/` slows \
                  the routing of every message under it; `--no-vessel-liveliness` measures the daemon \
                  without them."
-                    .to_string()
-            } else {
-                "Liveliness: no per-vessel tokens (`publish.vessel_liveliness = false`, \
+                    .to_string(),
+                (false, _) => "Liveliness: no per-vessel tokens (`publish.vessel_liveliness = false`, \
                  `--no-vessel-liveliness`): the contract's `asv/{vessel}/twin/alive` is not declared."
-                    .to_string()
+                    .to_string(),
             });
         }
         let any = self.scaling.first().or(self.capacity.first());

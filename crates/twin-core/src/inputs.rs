@@ -116,9 +116,8 @@ const MAX_SECTIONS: usize = 4;
 /// A digital Butterworth low-pass as a cascade of second-order sections,
 /// designed by the bilinear transform with pre-warping.
 ///
-/// The sections are held inline (no heap), so copying a filter, as the twin
-/// does on every fix to keep a refused fix from changing anything, does not
-/// allocate.
+/// The sections are held inline (no heap), so copying a filter, as every
+/// copy of the twin does (a forecast's, for one), does not allocate.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Butterworth {
     /// The first `section_count` are the filter; the rest stay at their
