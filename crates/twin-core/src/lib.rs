@@ -9,6 +9,7 @@
 //! - [`otter`]: the Otter's parameters and the seed's thrust split (step 4).
 //! - [`linalg`]: small Cholesky factorisation and solves for the filter.
 //! - [`simd`]: which vector width this processor runs the filter's step at.
+//! - [`trig`]: the sine and cosine of a heading, inlined (the models' hot path).
 //! - [`aekf`]: the adaptive extended Kalman filter, generic over the model.
 //! - [`predict`]: open-loop forecasts with their uncertainty.
 //! - [`decision`]: nominal / suspect / fault per thruster, with hysteresis.
@@ -33,4 +34,5 @@ pub mod otter;
 pub mod predict;
 pub mod sample;
 pub mod simd;
+pub mod trig;
 pub mod twin;

@@ -321,30 +321,6 @@ pub fn mul_sparse_left<const R: usize, const K: usize, const C: usize>(
     out
 }
 
-/// `a b` where `b` has the structural zero pattern `pb`.
-#[inline(always)]
-pub fn mul_sparse_right<const R: usize, const K: usize, const C: usize>(
-    a: &SMatrix<f64, R, K>,
-    b: &SMatrix<f64, K, C>,
-    pb: &Pattern<K, C>,
-) -> SMatrix<f64, R, C> {
-    let mut out = SMatrix::<f64, R, C>::zeros();
-    for c in 0..C {
-        let mut acc = [0.0; R];
-        for k in 0..K {
-            if !pb[k][c] {
-                continue;
-            }
-            let bkc = b[(k, c)];
-            for r in 0..R {
-                acc[r] += a[(r, k)] * bkc;
-            }
-        }
-        out.column_mut(c).copy_from_slice(&acc);
-    }
-    out
-}
-
 /// `a b^T` for a product known to be symmetric (such as `A P A^T` given
 /// `a = A P`), where `b` has the pattern `pb`: the lower triangle mirrored,
 /// so the result is exactly symmetric. Whole columns are computed (and the
@@ -374,21 +350,33 @@ pub fn sym_mul_t_sparse<const N: usize, const K: usize>(
     out
 }
 
-/// `a b^T` for a product known to be symmetric, with every entry of `b`
-/// possibly non-zero: [`sym_mul_t_sparse`] without a pattern to test.
+/// `a b^T` where `b` has the structural zero pattern `pb`.
 #[inline(always)]
-pub fn sym_mul_t<const N: usize, const K: usize>(
-    a: &SMatrix<f64, N, K>,
-    b: &SMatrix<f64, N, K>,
-) -> SMatrix<f64, N, N> {
-    let mut out = mul_t(a, b);
-    mirror_lower(&mut out);
+pub fn mul_t_sparse<const R: usize, const K: usize, const C: usize>(
+    a: &SMatrix<f64, R, K>,
+    b: &SMatrix<f64, C, K>,
+    pb: &Pattern<C, K>,
+) -> SMatrix<f64, R, C> {
+    let mut out = SMatrix::<f64, R, C>::zeros();
+    for c in 0..C {
+        let mut acc = [0.0; R];
+        for k in 0..K {
+            if !pb[c][k] {
+                continue;
+            }
+            let bck = b[(c, k)];
+            for r in 0..R {
+                acc[r] += a[(r, k)] * bck;
+            }
+        }
+        out.column_mut(c).copy_from_slice(&acc);
+    }
     out
 }
 
 /// Copies the lower triangle of `m` over its upper triangle.
 #[inline(always)]
-fn mirror_lower<const N: usize>(m: &mut SMatrix<f64, N, N>) {
+pub fn mirror_lower<const N: usize>(m: &mut SMatrix<f64, N, N>) {
     for c in 0..N {
         for r in c + 1..N {
             m[(c, r)] = m[(r, c)];
@@ -480,17 +468,16 @@ mod tests {
         pa[1][2] = false;
         a0[(1, 2)] = 0.0;
         assert!((mul_sparse_left(&a0, &pa, &b) - a0 * b).amax() < 1e-12);
-        let mut pb = dense::<4, 2>();
-        let mut b0 = b;
-        pb[3][0] = false;
-        b0[(3, 0)] = 0.0;
-        assert!((mul_sparse_right(&a, &b0, &pb) - a * b0).amax() < 1e-12);
+        let mut pc = dense::<2, 4>();
+        let mut c0 = c;
+        pc[1][3] = false;
+        c0[(1, 3)] = 0.0;
+        assert!((mul_t_sparse(&a, &c0, &pc) - a * c0.transpose()).amax() < 1e-12);
         let g = nalgebra::SMatrix::<f64, 3, 3>::from_fn(|i, j| (i * 3 + j) as f64 * 0.7 - 2.0);
         let pm = nalgebra::SMatrix::<f64, 3, 3>::from_fn(|i, j| if i == j { 2.0 } else { 0.5 });
         let sym = sym_mul_t_sparse(&(g * pm), &g, &dense());
         assert!((sym - g * pm * g.transpose()).amax() < 1e-12);
         assert_eq!(sym, sym.transpose());
-        assert_eq!(sym_mul_t(&(g * pm), &g), sym);
         assert!(diagonal::<3>()[1][1] && !diagonal::<3>()[0][1]);
     }
 

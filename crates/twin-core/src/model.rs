@@ -130,4 +130,17 @@ pub trait Model<const N: usize, const M: usize, const P: usize> {
 
     /// Entries of the observation Jacobian `H` that may be non-zero.
     const OBSERVATION_PATTERN: Pattern<M, N> = dense();
+
+    /// A sparser pattern that `H` keeps to on some instances of the model
+    /// (the Otter twin's without sensor effects), where
+    /// [`Model::observation_in_sparser_pattern`] says so; the filter then
+    /// skips its zeros too. Defaults to [`Model::OBSERVATION_PATTERN`].
+    const SPARSER_OBSERVATION_PATTERN: Pattern<M, N> = Self::OBSERVATION_PATTERN;
+
+    /// Whether this instance's `H` keeps to
+    /// [`Model::SPARSER_OBSERVATION_PATTERN`] (a wrong answer gives wrong
+    /// results, which the models' tests check). Defaults to `false`.
+    fn observation_in_sparser_pattern(&self) -> bool {
+        false
+    }
 }

@@ -40,6 +40,7 @@ use crate::models::otter_twin::{OtterTwin, ShaftSpeeds, idx, meas};
 use crate::otter::{OtterParams, seed_thruster_faults};
 use crate::predict::{PredictedPoint, predict};
 use crate::sample::{GnssFix, PropellerSpeeds, Side};
+use crate::trig;
 
 /// Why a measurement was not used. The estimate is unchanged after any.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
@@ -873,14 +874,14 @@ impl VesselTwin {
                         self.kinetic.last_report = Some(report);
                         self.kinetic.last_available = y.available;
                         let w = 1.0 - self.kinetic.filter.lambda(dt);
-                        let (sin_h, cos_h) = state.x[idx::PSI].sin_cos();
+                        let (sin_h, cos_h) = trig::sin_cos(state.x[idx::PSI]);
                         let m = &mut self.kinetic.heading_mean;
                         m[0] += w * (cos_h - m[0]);
                         m[1] += w * (sin_h - m[1]);
                     }
                     _ => {
                         let st = self.initial_kinetic_state(fix, ne);
-                        let (sin_h, cos_h) = st.x[idx::PSI].sin_cos();
+                        let (sin_h, cos_h) = trig::sin_cos(st.x[idx::PSI]);
                         self.kinetic.heading_mean = [cos_h, sin_h];
                         self.kinetic.state = Some(st);
                     }

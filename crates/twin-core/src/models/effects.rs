@@ -68,7 +68,7 @@ pub struct Kinematics {
 
 /// The measurement `[north, east, SOG, COG, heading]` of `k` with `fx`.
 pub fn gnss_measurement(k: &Kinematics, fx: &SensorEffects) -> [f64; 5] {
-    let (s, c) = k.heading_rad.sin_cos();
+    let (s, c) = crate::trig::sin_cos(k.heading_rad);
     let [ax, ay] = fx.antenna_m;
     // Antenna offset and its velocity from the yaw rate, in north/east.
     let off_n = c * ax - s * ay;

@@ -16,6 +16,7 @@ use nalgebra::{SMatrix, SVector, Vector2, Vector4};
 use crate::geodesy::wrap_pi;
 use crate::linalg::{Pattern, diagonal};
 use crate::model::{Model, Observation, Transition};
+use crate::trig;
 
 /// State `[north_m, east_m, sog_mps, course_rad]`.
 pub type KinematicState = Vector4<f64>;
@@ -54,7 +55,7 @@ impl Model<4, 4, 2> for KinematicModel {
         dt_s: f64,
     ) -> Transition<4, 2> {
         let (speed, course) = (x[2], x[3]);
-        let (sin_c, cos_c) = course.sin_cos();
+        let (sin_c, cos_c) = trig::sin_cos(course);
         let a = input.accel_mps2;
         let r = input.course_rate_radps;
         let next = Vector4::new(

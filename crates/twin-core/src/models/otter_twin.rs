@@ -38,10 +38,11 @@
 use nalgebra::{Matrix3, Matrix3x2, SMatrix, SVector, Vector2, Vector3};
 
 use crate::geodesy::wrap_pi;
-use crate::linalg::{Pattern, mul};
+use crate::linalg::{Pattern, mul, mul_sparse_left};
 use crate::model::{Model, Observation, Transition};
 use crate::models::effects::{Kinematics, SensorEffects, gnss_measurement};
 use crate::otter::OtterParams;
+use crate::trig;
 
 /// Longest integration sub-step, seconds.
 pub const MAX_SUBSTEP_S: f64 = 0.2;
@@ -121,6 +122,26 @@ const F_PATTERN: Pattern<8, 8> = {
 };
 
 /// The entries of the observation Jacobian `H` (8 states) that may be
+/// non-zero without [`SensorEffects`]: the position from the position, the
+/// heading from the heading, and the speed and course over ground from the
+/// heading, the velocities through the water and the current.
+const H_PATTERN_WITHOUT_EFFECTS: Pattern<5, 8> = {
+    use idx::*;
+    let velocity = [PSI, U, V, CURRENT_NORTH, CURRENT_EAST];
+    let mut p = [[false; 8]; 5];
+    p[meas::NORTH][NORTH] = true;
+    p[meas::EAST][EAST] = true;
+    p[meas::HEADING][PSI] = true;
+    let mut k = 0;
+    while k < velocity.len() {
+        p[meas::SOG][velocity[k]] = true;
+        p[meas::COG][velocity[k]] = true;
+        k += 1;
+    }
+    p
+};
+
+/// The entries of the observation Jacobian `H` (8 states) that may be
 /// non-zero, with or without [`SensorEffects`]: an antenna off the body
 /// origin and a latency make the position and the velocity over ground
 /// depend on heading, velocities, yaw rate and current.
@@ -159,6 +180,34 @@ const fn leading<const R: usize, const C: usize, const RF: usize>(
     }
     p
 }
+
+/// The `R x C` block of an 8-state pattern at rows `r0..`, columns `c0..`:
+/// the zeros of the 3 x 3 blocks that [`SubstepJacobians`] multiplies.
+const fn block<const R: usize, const C: usize>(
+    full: &Pattern<8, 8>,
+    r0: usize,
+    c0: usize,
+) -> Pattern<R, C> {
+    let mut p = [[false; C]; R];
+    let mut i = 0;
+    while i < R {
+        let mut j = 0;
+        while j < C {
+            p[i][j] = full[r0 + i][c0 + j];
+            j += 1;
+        }
+        i += 1;
+    }
+    p
+}
+
+/// `E`, the heading-to-position block of `A` (rows and columns eta): only
+/// the psi column of the north and east rows.
+const A_ETA_ETA: Pattern<3, 3> = block(&A_PATTERN, 0, 0);
+/// `N`, the velocity-to-position block of `A` (rows eta, columns nu).
+const A_ETA_NU: Pattern<3, 3> = block(&A_PATTERN, 0, 3);
+/// `F` rows and columns eta: the identity and the psi column.
+const F_ETA_ETA: Pattern<3, 3> = block(&F_PATTERN, 0, 0);
 
 /// The twin's input: the two shaft speeds over the step.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -260,9 +309,7 @@ pub mod crossflow {
         pub d2: f64,
     }
 
-    /// The integrals over `[-L/2, L/2]`. On each side of the point where `w`
-    /// changes sign the integrands are polynomials of degree at most 3, so
-    /// two-point Gauss-Legendre on each piece is exact.
+    /// The integrals over `[-L/2, L/2]`, in closed form (below).
     #[inline]
     pub fn integrals(v: f64, r: f64, length_m: f64) -> Integrals {
         integrate::<true>(v, r, length_m)
@@ -275,36 +322,51 @@ pub mod crossflow {
         integrate::<false>(v, r, length_m)
     }
 
-    /// The integrals, with the derivatives when `DERIVATIVES`.
+    /// The integrals, with the derivatives when `DERIVATIVES`. With
+    /// `h = L/2`, `w_a = v - r h` and `w_b = v + r h` at the ends:
+    /// - where `w` keeps the sign `s` of `v` over the hull (`|v| >= |r| h`),
+    ///   `|w| w = s w^2` and every integrand is a polynomial:
+    ///   `int |w| w = s (2 h v^2 + 2 r^2 h^3 / 3)`, `int x |w| w = 4 s v r h^3 / 3`,
+    ///   `int 2|w| = 4 h |v|`, `int 2|w| x = 4 s r h^3 / 3`,
+    ///   `int 2|w| x^2 = 4 |v| h^3 / 3`;
+    /// - where it changes sign on the hull (`|v| < |r| h`, so `r != 0`), from
+    ///   `d|w|^3/dx = 3 r |w| w`, `d(|w| w)/dx = 2 r |w|` and
+    ///   `d(|w|^3 w)/dx = 4 r |w|^3`, integrating by parts:
+    ///   `int |w| w = [|w|^3] / 3r`,
+    ///   `int x |w| w = [x |w|^3] / 3r - [|w|^3 w] / 12 r^2`,
+    ///   `int 2|w| = [|w| w] / r`, `int 2|w| x = ([x |w| w] - int |w| w) / r`,
+    ///   `int 2|w| x^2 = ([x^2 |w| w] - 2 int x |w| w) / r`,
+    ///   with `[g] = g(h) - g(-h)`. Here `|v| < |r| h` bounds every term by a
+    ///   small multiple of the result's scale (`r^2 h^3`, `|r| h^4`), so the
+    ///   differences lose at most a few bits of it.
     #[inline(always)]
     fn integrate<const DERIVATIVES: bool>(v: f64, r: f64, length_m: f64) -> Integrals {
-        let half = 0.5 * length_m;
+        let h = 0.5 * length_m;
+        let h3 = h * h * h;
         let mut out = Integrals::default();
-        let mut add_piece = |a: f64, b: f64| {
-            if b <= a {
-                return;
+        if v.abs() >= r.abs() * h {
+            let s = if v >= 0.0 { 1.0 } else { -1.0 };
+            out.w_abs_w = s * (2.0 * h * v * v + (2.0 / 3.0) * r * r * h3);
+            out.x_w_abs_w = s * (4.0 / 3.0) * v * r * h3;
+            if DERIVATIVES {
+                out.d0 = 4.0 * h * v.abs();
+                out.d1 = s * (4.0 / 3.0) * r * h3;
+                out.d2 = (4.0 / 3.0) * v.abs() * h3;
             }
-            let mid = 0.5 * (a + b);
-            let half_width = 0.5 * (b - a);
-            let sign = if v + r * mid >= 0.0 { 1.0 } else { -1.0 };
-            let g = half_width / 3f64.sqrt();
-            for x in [mid - g, mid + g] {
-                let w = v + r * x;
-                out.w_abs_w += half_width * sign * w * w;
-                out.x_w_abs_w += half_width * sign * x * w * w;
-                if DERIVATIVES {
-                    out.d0 += half_width * 2.0 * sign * w;
-                    out.d1 += half_width * 2.0 * sign * w * x;
-                    out.d2 += half_width * 2.0 * sign * w * x * x;
-                }
-            }
-        };
-        let crossing = if r != 0.0 { -v / r } else { f64::INFINITY };
-        if crossing > -half && crossing < half {
-            add_piece(-half, crossing);
-            add_piece(crossing, half);
-        } else {
-            add_piece(-half, half);
+            return out;
+        }
+        let inv_r = 1.0 / r;
+        let (w_a, w_b) = (v - r * h, v + r * h);
+        let (abs_a, abs_b) = (w_a.abs(), w_b.abs());
+        let (cube_a, cube_b) = (abs_a * abs_a * abs_a, abs_b * abs_b * abs_b);
+        out.w_abs_w = (cube_b - cube_a) * (inv_r / 3.0);
+        out.x_w_abs_w = h * (cube_b + cube_a) * (inv_r / 3.0)
+            - (cube_b * w_b - cube_a * w_a) * (inv_r * inv_r / 12.0);
+        if DERIVATIVES {
+            let (sq_a, sq_b) = (abs_a * w_a, abs_b * w_b);
+            out.d0 = (sq_b - sq_a) * inv_r;
+            out.d1 = (h * (sq_b + sq_a) - out.w_abs_w) * inv_r;
+            out.d2 = (h * h * (sq_b - sq_a) - 2.0 * out.x_w_abs_w) * inv_r;
         }
         out
     }
@@ -398,7 +460,10 @@ impl SubstepJacobians {
     /// `E^2 = 0` and `E C = 0` the blocks of the powers are
     /// `(hA)^2 = [[0, EN + ND, 0], [0, D^2, 0], 0]` and
     /// `(hA)^3 = [[0, E(EN + ND) + N D^2, 0], [0, D^3, 0], 0]`; `B` is zero
-    /// outside the nu rows.
+    /// outside the nu rows. Grouped with `T = I/2 + D/6` and
+    /// `G = I + D T = I + D/2 + D^2/6`:
+    /// `F_nu,nu = I + D G`, `F_eta,nu = N G + E (N T)`,
+    /// `Psi_nu = h G B` and `Psi_eta = h (N T + E N / 6) B`.
     #[inline(always)]
     fn exp_third_order(d: &Derivatives, h: f64) -> Self {
         let a = &d.a;
@@ -407,21 +472,20 @@ impl SubstepJacobians {
         let c = Matrix3x2::from_fn(|i, j| a[(i, 6 + j)] * h);
         let dd = Matrix3::from_fn(|i, j| a[(3 + i, 3 + j)] * h);
         let b = Matrix3x2::from_fn(|i, j| d.b[(3 + i, j)]);
-        let d2 = mul(&dd, &dd);
-        let d3 = mul(&dd, &d2);
-        let x2 = mul(&e, &n) + mul(&n, &dd);
-        let x3 = mul(&e, &x2) + mul(&n, &d2);
-        let db = mul(&dd, &b);
-        let nb = mul(&n, &b);
-        let x2b = mul(&e, &nb) + mul(&n, &db);
-        let d2b = mul(&dd, &db);
+        // Products by E and N skip their structural zeros.
+        let e_times = |m: &Matrix3<f64>| mul_sparse_left(&e, &A_ETA_ETA, m);
+        let n_times = |m: &Matrix3<f64>| mul_sparse_left(&n, &A_ETA_NU, m);
+        let t = Matrix3::from_fn(|i, j| if i == j { 0.5 } else { 0.0 } + dd[(i, j)] * (1.0 / 6.0));
+        let g = Matrix3::identity() + mul(&dd, &t);
+        let n_t = n_times(&t);
+        let fault_eta_gain = n_t + e_times(&n) * (1.0 / 6.0);
         Self {
             eta_eta: Matrix3::identity() + e,
-            eta_nu: n + x2 * 0.5 + x3 * (1.0 / 6.0),
+            eta_nu: n_times(&g) + e_times(&n_t),
             eta_current: c,
-            nu_nu: Matrix3::identity() + dd + d2 * 0.5 + d3 * (1.0 / 6.0),
-            fault_eta: (nb * 0.5 + x2b * (1.0 / 6.0)) * h,
-            fault_nu: (b + db * 0.5 + d2b * (1.0 / 6.0)) * h,
+            nu_nu: Matrix3::identity() + mul(&dd, &g),
+            fault_eta: mul(&fault_eta_gain, &b) * h,
+            fault_nu: mul(&g, &b) * h,
         }
     }
 
@@ -429,12 +493,14 @@ impl SubstepJacobians {
     /// `Psi = F_next Psi_self + Psi_next`.
     #[inline(always)]
     fn then(&self, next: &Self) -> Self {
+        let eta_eta = &next.eta_eta;
         Self {
-            eta_eta: mul(&next.eta_eta, &self.eta_eta),
-            eta_nu: mul(&next.eta_eta, &self.eta_nu) + mul(&next.eta_nu, &self.nu_nu),
-            eta_current: mul(&next.eta_eta, &self.eta_current) + next.eta_current,
+            eta_eta: mul_sparse_left(eta_eta, &F_ETA_ETA, &self.eta_eta),
+            eta_nu: mul_sparse_left(eta_eta, &F_ETA_ETA, &self.eta_nu)
+                + mul(&next.eta_nu, &self.nu_nu),
+            eta_current: mul_sparse_left(eta_eta, &F_ETA_ETA, &self.eta_current) + next.eta_current,
             nu_nu: mul(&next.nu_nu, &self.nu_nu),
-            fault_eta: mul(&next.eta_eta, &self.fault_eta)
+            fault_eta: mul_sparse_left(eta_eta, &F_ETA_ETA, &self.fault_eta)
                 + mul(&next.eta_nu, &self.fault_nu)
                 + next.fault_eta,
             fault_nu: mul(&next.nu_nu, &self.fault_nu) + next.fault_nu,
@@ -498,7 +564,7 @@ impl<const N: usize> OtterTwin<N> {
     ) -> Derivatives {
         let p = &self.params;
         let (psi, u, v, r) = (x[idx::PSI], x[idx::U], x[idx::V], x[idx::R]);
-        let (s, c) = psi.sin_cos();
+        let (s, c) = trig::sin_cos(psi);
         let m = p.mass_kg;
         let mxg = m * p.cg_x_m;
         let a11 = -p.added_mass[0];
@@ -735,7 +801,7 @@ impl<const N: usize> OtterTwin<N> {
     /// The measurement with effects, its Jacobian by central differences.
     fn observe8_with_effects(&self, x: &SVector<f64, 8>) -> Observation<8, 5> {
         let h = |x: &SVector<f64, 8>| {
-            let (s, c) = x[idx::PSI].sin_cos();
+            let (s, c) = trig::sin_cos(x[idx::PSI]);
             let k = Kinematics {
                 north_m: x[idx::NORTH],
                 east_m: x[idx::EAST],
@@ -771,10 +837,12 @@ impl<const N: usize> OtterTwin<N> {
             return self.observe8_with_effects(x);
         }
         let (psi, u, v) = (x[idx::PSI], x[idx::U], x[idx::V]);
-        let (s, c) = psi.sin_cos();
+        let (s, c) = trig::sin_cos(psi);
         let vn = c * u - s * v + x[idx::CURRENT_NORTH];
         let ve = s * u + c * v + x[idx::CURRENT_EAST];
-        let sog = vn.hypot(ve);
+        // Speeds are far from overflow and underflow: no need of `hypot`'s
+        // scaling (a C library call).
+        let sog = (vn * vn + ve * ve).sqrt();
         let sog_safe = sog.max(1e-3);
         let mut h = SMatrix::<f64, 5, 8>::zeros();
         h[(meas::NORTH, idx::NORTH)] = 1.0;
@@ -880,6 +948,12 @@ impl Model<8, 5, 2> for OtterTwin<8> {
     const TRANSITION_PATTERN: Pattern<8, 8> = F_PATTERN;
 
     const OBSERVATION_PATTERN: Pattern<5, 8> = H_PATTERN;
+
+    const SPARSER_OBSERVATION_PATTERN: Pattern<5, 8> = H_PATTERN_WITHOUT_EFFECTS;
+
+    fn observation_in_sparser_pattern(&self) -> bool {
+        self.effects.is_neutral()
+    }
 }
 
 /// The 6-state vector as an 8-state one in still water.
@@ -968,6 +1042,13 @@ impl Model<6, 5, 2> for OtterTwin<6> {
     const TRANSITION_PATTERN: Pattern<6, 6> = leading::<6, 6, 8>(&F_PATTERN);
 
     const OBSERVATION_PATTERN: Pattern<5, 6> = leading::<5, 6, 5>(&H_PATTERN);
+
+    const SPARSER_OBSERVATION_PATTERN: Pattern<5, 6> =
+        leading::<5, 6, 5>(&H_PATTERN_WITHOUT_EFFECTS);
+
+    fn observation_in_sparser_pattern(&self) -> bool {
+        self.effects.is_neutral()
+    }
 }
 
 #[cfg(test)]
@@ -980,6 +1061,9 @@ mod tests {
 
     #[test]
     fn crossflow_integrals_match_fine_quadrature() {
+        // Both forms (sign kept, sign changing on the hull), both signs of
+        // v and r, the boundary between the forms and either side of it, a
+        // yaw rate too small to divide by, and still water.
         for (v, r) in [
             (0.2, 0.0),
             (0.0, 0.3),
@@ -987,25 +1071,37 @@ mod tests {
             (-0.3, 0.05),
             (1e-9, 1e-9),
             (0.05, 0.2),
+            (0.3, 0.3),
+            (0.299_999, 0.3),
+            (-0.300_001, 0.3),
+            (-0.299_999, -0.3),
+            (1.0, -2.0),
+            (0.2, 1e-13),
+            (0.0, 0.0),
+            (-1.5, 0.7),
         ] {
             let ints = crossflow::integrals(v, r, 2.0);
+            let forces = crossflow::forces(v, r, 2.0);
+            assert_eq!(
+                (forces.w_abs_w, forces.x_w_abs_w),
+                (ints.w_abs_w, ints.x_w_abs_w)
+            );
             let n = 200_000;
             let dx = 2.0 / n as f64;
-            let (mut i0, mut i1, mut d2) = (0.0, 0.0, 0.0);
+            let mut fine = [0.0; 5];
             for k in 0..n {
                 let x = -1.0 + (k as f64 + 0.5) * dx;
                 let w: f64 = v + r * x;
-                i0 += w.abs() * w * dx;
-                i1 += x * w.abs() * w * dx;
-                d2 += 2.0 * w.abs() * x * x * dx;
+                fine[0] += w.abs() * w * dx;
+                fine[1] += x * w.abs() * w * dx;
+                fine[2] += 2.0 * w.abs() * dx;
+                fine[3] += 2.0 * w.abs() * x * dx;
+                fine[4] += 2.0 * w.abs() * x * x * dx;
             }
-            assert!(
-                (ints.w_abs_w - i0).abs() < 1e-9,
-                "{v} {r}: {} vs {i0}",
-                ints.w_abs_w
-            );
-            assert!((ints.x_w_abs_w - i1).abs() < 1e-9);
-            assert!((ints.d2 - d2).abs() < 1e-9);
+            let exact = [ints.w_abs_w, ints.x_w_abs_w, ints.d0, ints.d1, ints.d2];
+            for (i, (e, f)) in exact.iter().zip(fine).enumerate() {
+                assert!((e - f).abs() < 1e-9, "v {v} r {r} integral {i}: {e} vs {f}");
+            }
         }
     }
 
@@ -1273,23 +1369,45 @@ mod tests {
                     }
                 }
             }
+            // Without effects H keeps to the sparser pattern too (and says
+            // so); with them it does not, and says so.
             for t in [twin, twin.with_effects(effects)] {
+                let t6 = twin6.with_effects(t.effects);
+                let sparser = Model::<8, 5, 2>::observation_in_sparser_pattern(&t);
+                assert_eq!(sparser, t.effects.is_neutral());
+                assert_eq!(
+                    Model::<6, 5, 2>::observation_in_sparser_pattern(&t6),
+                    sparser
+                );
                 let h = Model::<8, 5, 2>::observe(&t, &x).jacobian;
-                let h6 = Model::<6, 5, 2>::observe(
-                    &twin6.with_effects(t.effects),
-                    &x.fixed_rows::<6>(0).into_owned(),
-                )
-                .jacobian;
+                let h6 =
+                    Model::<6, 5, 2>::observe(&t6, &x.fixed_rows::<6>(0).into_owned()).jacobian;
+                let pattern = if sparser {
+                    H_PATTERN_WITHOUT_EFFECTS
+                } else {
+                    H_PATTERN
+                };
+                let pattern6 = if sparser {
+                    <OtterTwin<6> as Model<6, 5, 2>>::SPARSER_OBSERVATION_PATTERN
+                } else {
+                    <OtterTwin<6> as Model<6, 5, 2>>::OBSERVATION_PATTERN
+                };
+                let mut outside_sparser = 0;
                 for i in 0..5 {
                     for j in 0..8 {
-                        if !H_PATTERN[i][j] {
-                            assert_eq!(h[(i, j)], 0.0, "H[{i},{j}] (state {k})");
+                        if !pattern[i][j] {
+                            assert_eq!(h[(i, j)], 0.0, "H[{i},{j}] (state {k}, {sparser})");
                         }
-                        if j < 6 && !<OtterTwin<6> as Model<6, 5, 2>>::OBSERVATION_PATTERN[i][j] {
-                            assert_eq!(h6[(i, j)], 0.0, "H6[{i},{j}]");
+                        if j < 6 && !pattern6[i][j] {
+                            assert_eq!(h6[(i, j)], 0.0, "H6[{i},{j}] ({sparser})");
+                        }
+                        if !H_PATTERN_WITHOUT_EFFECTS[i][j] && h[(i, j)] != 0.0 {
+                            outside_sparser += 1;
                         }
                     }
                 }
+                // The effects do reach outside the sparser pattern.
+                assert_eq!(outside_sparser > 0, !sparser, "state {k}");
             }
         }
     }

@@ -23,6 +23,7 @@ use nalgebra::{SMatrix, SVector};
 use crate::geodesy::wrap_pi;
 use crate::model::{Model, Observation, Transition};
 use crate::models::effects::{Kinematics, SensorEffects, gnss_measurement};
+use crate::trig;
 
 /// Index of each state component.
 pub mod idx {
@@ -84,7 +85,7 @@ impl Default for WaterKinematic {
 
 impl WaterKinematic {
     fn kinematics(&self, x: &SVector<f64, 7>) -> Kinematics {
-        let (s, c) = x[idx::PSI].sin_cos();
+        let (s, c) = trig::sin_cos(x[idx::PSI]);
         let (u, v) = (x[idx::U], self.sideslip_m * x[idx::R]);
         Kinematics {
             north_m: x[idx::NORTH],
@@ -122,7 +123,7 @@ impl Model<7, 6, 0> for WaterKinematic {
         let (psi, u, r) = (x[idx::PSI], x[idx::U], x[idx::R]);
         let v = self.sideslip_m * r;
         let mid = psi + 0.5 * r * dt_s;
-        let (s, c) = mid.sin_cos();
+        let (s, c) = trig::sin_cos(mid);
         let mut next = *x;
         next[idx::NORTH] += dt_s * (u * c - v * s + x[idx::CURRENT_NORTH]);
         next[idx::EAST] += dt_s * (u * s + v * c + x[idx::CURRENT_EAST]);
