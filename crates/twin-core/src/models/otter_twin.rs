@@ -375,10 +375,43 @@ pub mod crossflow {
 /// The continuous-time dynamics at one point: the state derivative, its
 /// Jacobian `A` and the fault sensitivity `B = d xdot / d theta`, on the
 /// 8-state vector.
+/// `A` is kept as its blocks that can be non-zero (see
+/// [`block_structure_holds`]): rows eta (north, east, psi) against eta, nu
+/// and the current, and rows nu against nu; `B` as its nu rows.
 struct Derivatives {
     xdot: SVector<f64, 8>,
-    a: SMatrix<f64, 8, 8>,
-    b: SMatrix<f64, 8, 2>,
+    /// `A` rows eta, columns eta (`E`).
+    a_eta_eta: Matrix3<f64>,
+    /// `A` rows eta, columns nu (`N`).
+    a_eta_nu: Matrix3<f64>,
+    /// `A` rows eta, columns current.
+    a_eta_current: Matrix3x2<f64>,
+    /// `A` rows nu, columns nu (`D`).
+    a_nu_nu: Matrix3<f64>,
+    /// `B` rows nu.
+    b_nu: Matrix3x2<f64>,
+}
+
+impl Derivatives {
+    /// `A` as an 8 x 8 matrix.
+    #[cfg(test)]
+    fn a(&self) -> SMatrix<f64, 8, 8> {
+        let mut a = SMatrix::<f64, 8, 8>::zeros();
+        a.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.a_eta_eta);
+        a.fixed_view_mut::<3, 3>(0, 3).copy_from(&self.a_eta_nu);
+        a.fixed_view_mut::<3, 2>(0, 6)
+            .copy_from(&self.a_eta_current);
+        a.fixed_view_mut::<3, 3>(3, 3).copy_from(&self.a_nu_nu);
+        a
+    }
+
+    /// `B` as an 8 x 2 matrix.
+    #[cfg(test)]
+    fn b(&self) -> SMatrix<f64, 8, 2> {
+        let mut b = SMatrix::<f64, 8, 2>::zeros();
+        b.fixed_view_mut::<3, 2>(3, 0).copy_from(&self.b_nu);
+        b
+    }
 }
 
 /// Whether `A_PATTERN` has the block structure [`SubstepJacobians`] relies
@@ -466,12 +499,11 @@ impl SubstepJacobians {
     /// `Psi_nu = h G B` and `Psi_eta = h (N T + E N / 6) B`.
     #[inline(always)]
     fn exp_third_order(d: &Derivatives, h: f64) -> Self {
-        let a = &d.a;
-        let e = Matrix3::from_fn(|i, j| a[(i, j)] * h);
-        let n = Matrix3::from_fn(|i, j| a[(i, 3 + j)] * h);
-        let c = Matrix3x2::from_fn(|i, j| a[(i, 6 + j)] * h);
-        let dd = Matrix3::from_fn(|i, j| a[(3 + i, 3 + j)] * h);
-        let b = Matrix3x2::from_fn(|i, j| d.b[(3 + i, j)]);
+        let e = d.a_eta_eta * h;
+        let n = d.a_eta_nu * h;
+        let c = d.a_eta_current * h;
+        let dd = d.a_nu_nu * h;
+        let b = d.b_nu;
         // Products by E and N skip their structural zeros.
         let e_times = |m: &Matrix3<f64>| mul_sparse_left(&e, &A_ETA_ETA, m);
         let n_times = |m: &Matrix3<f64>| mul_sparse_left(&n, &A_ETA_NU, m);
@@ -601,18 +633,26 @@ impl<const N: usize> OtterTwin<N> {
         xdot[idx::V] = nu_dot[1];
         xdot[idx::R] = nu_dot[2];
 
-        let mut a = SMatrix::<f64, 8, 8>::zeros();
-        let mut bm = SMatrix::<f64, 8, 2>::zeros();
+        let mut d = Derivatives {
+            xdot,
+            a_eta_eta: Matrix3::zeros(),
+            a_eta_nu: Matrix3::zeros(),
+            a_eta_current: Matrix3x2::zeros(),
+            a_nu_nu: Matrix3::zeros(),
+            b_nu: Matrix3x2::zeros(),
+        };
         if JACOBIANS {
-            a[(idx::NORTH, idx::PSI)] = -s * u - c * v;
-            a[(idx::NORTH, idx::U)] = c;
-            a[(idx::NORTH, idx::V)] = -s;
-            a[(idx::NORTH, idx::CURRENT_NORTH)] = 1.0;
-            a[(idx::EAST, idx::PSI)] = c * u - s * v;
-            a[(idx::EAST, idx::U)] = s;
-            a[(idx::EAST, idx::V)] = c;
-            a[(idx::EAST, idx::CURRENT_EAST)] = 1.0;
-            a[(idx::PSI, idx::R)] = 1.0;
+            // Rows north, east, psi of A; the columns of each block in
+            // state order.
+            d.a_eta_eta[(idx::NORTH, idx::PSI)] = -s * u - c * v;
+            d.a_eta_eta[(idx::EAST, idx::PSI)] = c * u - s * v;
+            d.a_eta_nu[(idx::NORTH, idx::U - 3)] = c;
+            d.a_eta_nu[(idx::NORTH, idx::V - 3)] = -s;
+            d.a_eta_nu[(idx::EAST, idx::U - 3)] = s;
+            d.a_eta_nu[(idx::EAST, idx::V - 3)] = c;
+            d.a_eta_nu[(idx::PSI, idx::R - 3)] = 1.0;
+            d.a_eta_current[(idx::NORTH, idx::CURRENT_NORTH - 6)] = 1.0;
+            d.a_eta_current[(idx::EAST, idx::CURRENT_EAST - 6)] = 1.0;
             // d g / d nu with g = tau - C nu + damping.
             let dg = Matrix3::new(
                 xu,
@@ -625,8 +665,7 @@ impl<const N: usize> OtterTwin<N> {
                 -(a22 - a11) * u - cf * ints.d1,
                 nr * (1.0 + 2.0 * k_nl * r.abs()) - mxg * u - cf * ints.d2,
             );
-            let dnu = mul(&self.mass_inverse, &dg);
-            a.fixed_view_mut::<3, 3>(idx::U, idx::U).copy_from(&dnu);
+            d.a_nu_nu = mul(&self.mass_inverse, &dg);
             let dtau = nalgebra::Matrix3x2::new(
                 -thrust[0],
                 -thrust[1],
@@ -635,10 +674,9 @@ impl<const N: usize> OtterTwin<N> {
                 -b * thrust[0],
                 b * thrust[1],
             );
-            bm.fixed_view_mut::<3, 2>(idx::U, 0)
-                .copy_from(&mul(&self.mass_inverse, &dtau));
+            d.b_nu = mul(&self.mass_inverse, &dtau);
         }
-        Derivatives { xdot, a, b: bm }
+        d
     }
 
     /// The number of RK4 sub-steps of a step of `dt_s` from `x0` (whose
@@ -1122,9 +1160,9 @@ mod tests {
                 (twin.xdot(&xp, &thrust, &theta) - twin.xdot(&xm, &thrust, &theta)) / (2.0 * eps);
             for i in 0..8 {
                 assert!(
-                    (num[i] - d.a[(i, j)]).abs() < 1e-5,
+                    (num[i] - d.a()[(i, j)]).abs() < 1e-5,
                     "A[{i},{j}]: {} vs {}",
-                    d.a[(i, j)],
+                    d.a()[(i, j)],
                     num[i]
                 );
             }
@@ -1134,7 +1172,7 @@ mod tests {
             tp[j] += eps;
             let num = (twin.xdot(&x, &thrust, &tp) - d.xdot) / eps;
             for i in 0..8 {
-                assert!((num[i] - d.b[(i, j)]).abs() < 1e-5, "B[{i},{j}]");
+                assert!((num[i] - d.b()[(i, j)]).abs() < 1e-5, "B[{i},{j}]");
             }
         }
     }
@@ -1172,12 +1210,12 @@ mod tests {
             let d2 = twin.dynamics(&(x + d1.xdot * 0.1), &thrust, &theta);
             for h in [0.05, 0.2] {
                 let dense = |d: &Derivatives| {
-                    let ha = d.a * h;
+                    let ha = d.a() * h;
                     let f = SMatrix::<f64, 8, 8>::identity()
                         + ha
                         + ha * ha * 0.5
                         + ha * ha * ha * (1.0 / 6.0);
-                    let psi = (d.b + ha * d.b * 0.5 + ha * ha * d.b * (1.0 / 6.0)) * h;
+                    let psi = (d.b() + ha * d.b() * 0.5 + ha * ha * d.b() * (1.0 / 6.0)) * h;
                     (f, psi)
                 };
                 let (f1, psi1) = dense(&d1);
@@ -1343,7 +1381,7 @@ mod tests {
         .into_iter()
         .enumerate()
         {
-            let a = twin.dynamics(&x, &thrust, &theta).a;
+            let a = twin.dynamics(&x, &thrust, &theta).a();
             for dt in [0.05, 0.2, 1.0, 3.0] {
                 let u = ShaftSpeeds {
                     port_radps: 90.0,
