@@ -27,9 +27,13 @@
 //! Computed, not changed: `Sigma` is factorised once per step as `L D L^T`
 //! (no square roots) and every solve with it reuses the factor; steps 8-10
 //! go through the push-through identity, a `P x P` inverse in place of
-//! factorising the `M x M` `Lambda^-1` (see the step's comments). Both give
-//! the recursion's numbers to rounding (`twin-bench numpy` holds them to the
-//! NumPy reference, which codes the steps as written).
+//! factorising the `M x M` `Lambda^-1` (see the step's comments); the Joseph
+//! form is regrouped to reuse `H P-` (`joseph_update`); where the model
+//! says its `H` keeps to a sparser pattern
+//! ([`Model::observation_in_sparser_pattern`]), the update runs in a copy of
+//! its code that skips those zeros. All give the recursion's numbers to
+//! rounding (`twin-bench numpy` holds them to the NumPy reference, which
+//! codes the steps as written).
 
 use nalgebra::{SMatrix, SVector};
 

@@ -12,7 +12,7 @@
 //! # Method
 //! - Argument reduction: `x = n pi/2 + r` with `|r| <= pi/4`, `n` the nearest
 //!   integer to `x 2/pi`. `pi/2` is split into three parts
-//!   ([`PIO2_HI`], [`PIO2_MID`], [`PIO2_LO`], Cody and Waite 1980): the
+//!   (`PIO2_HI`, `PIO2_MID`, `PIO2_LO`, Cody and Waite 1980): the
 //!   first two have 33 significant bits, so `n` times either is exact for
 //!   `|n| < 2^20`, and the difference `x - n PIO2_HI` is exact. The parts
 //!   sum to `pi/2` within about `1e-32`, so `r` is good to about an ulp for
