@@ -38,12 +38,11 @@
 use nalgebra::{SMatrix, SVector};
 
 use crate::linalg::{
-    cholesky, inverse_small, ldl, mirror_lower, mul, mul_sparse_left, mul_t, mul_t_sparse, mul_tn,
-    sym_mul_t_sparse,
+    Pattern, cholesky, inverse_small, ldl, mirror_lower, mul, mul_sparse_left, mul_t, mul_t_sparse,
+    mul_tn, sym_mul_t_sparse,
 };
 
 use crate::geodesy::wrap_pi;
-use crate::linalg::Pattern;
 use crate::model::{Measurement, Model, Observation};
 
 /// Optional adaptation of Q and R from the innovations (the seed authors'
@@ -511,7 +510,9 @@ where
         };
         let p_post = joseph_update(&p_prior, &h, h_pattern, &h_p, &k, &k_r);
 
-        // Steps 6-7, sharing F Upsilon_old + Psi.
+        // Steps 6-7, sharing F Upsilon_old + Psi; with Omega = H (F
+        // Upsilon_old + Psi) at hand, (I - K H)(F Upsilon_old + Psi) is
+        // that minus K Omega.
         let f_ups_psi = mul_sparse_left(f, f_pattern, &state.upsilon) + psi;
         let omega = mul_sparse_left(&h, h_pattern, &f_ups_psi);
         let upsilon = f_ups_psi - mul(&k, &omega);

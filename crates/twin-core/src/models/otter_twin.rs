@@ -163,28 +163,11 @@ const H_PATTERN: Pattern<5, 8> = {
     p
 };
 
-/// The first `N` columns (and rows) of an 8-state pattern, for the 6-state
-/// twin.
-const fn leading<const R: usize, const C: usize, const RF: usize>(
+/// The `R x C` block at rows `r0..`, columns `c0..` of a pattern over the
+/// 8 states: the first six rows and columns for the 6-state twin, and the
+/// 3 x 3 blocks that [`SubstepJacobians`] multiplies.
+const fn block<const R: usize, const C: usize, const RF: usize>(
     full: &Pattern<RF, 8>,
-) -> Pattern<R, C> {
-    let mut p = [[false; C]; R];
-    let mut i = 0;
-    while i < R {
-        let mut j = 0;
-        while j < C {
-            p[i][j] = full[i][j];
-            j += 1;
-        }
-        i += 1;
-    }
-    p
-}
-
-/// The `R x C` block of an 8-state pattern at rows `r0..`, columns `c0..`:
-/// the zeros of the 3 x 3 blocks that [`SubstepJacobians`] multiplies.
-const fn block<const R: usize, const C: usize>(
-    full: &Pattern<8, 8>,
     r0: usize,
     c0: usize,
 ) -> Pattern<R, C> {
@@ -375,6 +358,7 @@ pub mod crossflow {
 /// The continuous-time dynamics at one point: the state derivative, its
 /// Jacobian `A` and the fault sensitivity `B = d xdot / d theta`, on the
 /// 8-state vector.
+///
 /// `A` is kept as its blocks that can be non-zero (see
 /// [`block_structure_holds`]): rows eta (north, east, psi) against eta, nu
 /// and the current, and rows nu against nu; `B` as its nu rows.
@@ -1077,12 +1061,12 @@ impl Model<6, 5, 2> for OtterTwin<6> {
         ]
     }
 
-    const TRANSITION_PATTERN: Pattern<6, 6> = leading::<6, 6, 8>(&F_PATTERN);
+    const TRANSITION_PATTERN: Pattern<6, 6> = block::<6, 6, 8>(&F_PATTERN, 0, 0);
 
-    const OBSERVATION_PATTERN: Pattern<5, 6> = leading::<5, 6, 5>(&H_PATTERN);
+    const OBSERVATION_PATTERN: Pattern<5, 6> = block::<5, 6, 5>(&H_PATTERN, 0, 0);
 
     const SPARSER_OBSERVATION_PATTERN: Pattern<5, 6> =
-        leading::<5, 6, 5>(&H_PATTERN_WITHOUT_EFFECTS);
+        block::<5, 6, 5>(&H_PATTERN_WITHOUT_EFFECTS, 0, 0);
 
     fn observation_in_sparser_pattern(&self) -> bool {
         self.effects.is_neutral()
