@@ -332,20 +332,7 @@ pub fn sym_mul_t_sparse<const N: usize, const K: usize>(
     b: &SMatrix<f64, N, K>,
     pb: &Pattern<N, K>,
 ) -> SMatrix<f64, N, N> {
-    let mut out = SMatrix::<f64, N, N>::zeros();
-    for c in 0..N {
-        let mut acc = [0.0; N];
-        for k in 0..K {
-            if !pb[c][k] {
-                continue;
-            }
-            let bck = b[(c, k)];
-            for r in 0..N {
-                acc[r] += a[(r, k)] * bck;
-            }
-        }
-        out.column_mut(c).copy_from_slice(&acc);
-    }
+    let mut out = mul_t_sparse(a, b, pb);
     mirror_lower(&mut out);
     out
 }

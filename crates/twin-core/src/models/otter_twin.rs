@@ -148,10 +148,7 @@ const H_PATTERN_WITHOUT_EFFECTS: Pattern<5, 8> = {
 const H_PATTERN: Pattern<5, 8> = {
     use idx::*;
     let velocity = [PSI, U, V, R, CURRENT_NORTH, CURRENT_EAST];
-    let mut p = [[false; 8]; 5];
-    p[meas::NORTH][NORTH] = true;
-    p[meas::EAST][EAST] = true;
-    p[meas::HEADING][PSI] = true;
+    let mut p = H_PATTERN_WITHOUT_EFFECTS;
     let mut k = 0;
     while k < velocity.len() {
         p[meas::NORTH][velocity[k]] = true;
