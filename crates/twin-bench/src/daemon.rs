@@ -927,14 +927,25 @@ impl DaemonReport {
         for r in self.scaling.iter().chain(&self.ramp).chain(&self.capacity) {
             if r.warmup_capped {
                 notes.push(format!(
-                    "{} {}: {} of the {} vessels had been heard from when the warm-up reached its cap \
-                     of {:.1} s ({} by the end); measured anyway.",
+                    "{} {}: the warm-up reached its cap of {:.1} s with {} of the {} vessels heard from \
+                     ({} by the end) and the generator {} behind its schedule; measured anyway.",
                     path_text(r.spec.path),
                     fleet_text(r),
+                    r.warmup_used_s,
                     thousands(r.vessels_heard_at_start as u64),
                     thousands(r.spec.vessels as u64),
+                    thousands(r.vessels_heard as u64),
+                    r.generator_lag_at_start_ms
+                        .map_or("-".into(), |l| format!("{l:.0} ms"))
+                ));
+            } else if r.warmup_used_s > r.spec.warmup_s + 1.0 {
+                notes.push(format!(
+                    "{} {}: the warm-up took {:.1} s (least {:.1} s) before every vessel was heard \
+                     from and the generator was back on its schedule: the fleet starting at once.",
+                    path_text(r.spec.path),
+                    fleet_text(r),
                     r.warmup_used_s,
-                    thousands(r.vessels_heard as u64)
+                    r.spec.warmup_s
                 ));
             }
             if r.unparsable > 0 {

@@ -24,7 +24,7 @@
 //!   due meanwhile), a last state and fault, saves the calibration, and
 //!   ends; its liveliness token goes with it.
 
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
 use tokio::sync::{Semaphore, mpsc, oneshot};
@@ -44,9 +44,9 @@ use twin_wire::outputs::{
 };
 use twin_wire::read::{NmeaDecoder, ReadOptions};
 use twin_wire::{Topic, VesselId};
-use zenoh::Session;
 use zenoh::key_expr::KeyExpr;
 use zenoh::qos::CongestionControl;
+use zenoh::{Session, Wait};
 
 use crate::forecast::{ForecastJob, Forecaster};
 use crate::persist;
@@ -73,19 +73,94 @@ pub enum VesselEvent {
     },
 }
 
-/// The vessel's output keys. They are not declared as Zenoh publishers:
-/// every declaration under `{prefix}/{vessel}/...` enters every connected
-/// session's resource tree, and with Zenoh 1.10 each message's routing then
-/// scans them, so six declared publishers per vessel made the whole fleet
-/// slower as it grew (`twin-bench daemon` measured it). A put on a key
-/// expression (validated once, here) costs the same without them.
+/// A key of the vessel's, declared to the daemon's own session
+/// (`Session::declare_keyexpr`) the first time it is used.
+///
+/// With Zenoh 1.10 a message on a key that is not a node of the routing
+/// session's resource tree has its route computed afresh, by a walk that
+/// visits every node under `{prefix}/`: each vessel's liveliness token is
+/// such a node, so with N tokens every message cost O(N) and the fleet
+/// O(N^2) (421 vessels sustained). A declared key expression is a node
+/// whose route is cached, so the daemon's routing of the vessel's inputs
+/// and of its own outputs no longer walks the tree (`twin-bench daemon`
+/// measured it; docs/daemon-performance.md). A declared key expression stays
+/// in the daemon's session: unlike a publisher or a token it is not
+/// announced to other sessions, so it adds nothing to theirs. Declaring
+/// costs one walk, so a key is declared only once it is used (a vessel
+/// sending fixes over NMEA never has its `gnss` key declared).
+/// Not a declared Zenoh publisher: six of those per vessel made the whole
+/// fleet slower as it grew.
+struct VesselKey {
+    key: KeyExpr<'static>,
+    declared: OnceLock<KeyExpr<'static>>,
+}
+
+impl VesselKey {
+    fn new(key: String) -> zenoh::Result<Self> {
+        Ok(Self {
+            key: KeyExpr::try_from(key)?,
+            declared: OnceLock::new(),
+        })
+    }
+
+    /// The key, declared to `session` on the first call. Should Zenoh
+    /// refuse, the undeclared key (it routes the same, uncached).
+    fn declared(&self, session: &Session) -> &KeyExpr<'static> {
+        self.declared
+            .get_or_init(|| match session.declare_keyexpr(self.key.clone()).wait() {
+                Ok(declared) => declared,
+                Err(e) => {
+                    tracing::debug!(key = %self.key, "key expression not declared: {e}");
+                    self.key.clone()
+                }
+            })
+    }
+}
+
+impl std::fmt::Display for VesselKey {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.key.fmt(f)
+    }
+}
+
+/// The vessel's keys: its outputs, and its inputs (declared only so that
+/// their routing in the daemon's session is cached; see [`VesselKey`]).
 struct OutputKeys {
-    state: KeyExpr<'static>,
-    fault: KeyExpr<'static>,
-    prediction: KeyExpr<'static>,
-    alarm: KeyExpr<'static>,
-    stats: KeyExpr<'static>,
-    finding: KeyExpr<'static>,
+    state: VesselKey,
+    fault: VesselKey,
+    prediction: VesselKey,
+    alarm: VesselKey,
+    stats: VesselKey,
+    finding: VesselKey,
+    gnss: VesselKey,
+    nmea: VesselKey,
+    actuators: VesselKey,
+}
+
+impl OutputKeys {
+    fn new(keys: &twin_wire::KeySpace, id: &VesselId) -> zenoh::Result<Self> {
+        Ok(Self {
+            state: VesselKey::new(keys.twin_state(id))?,
+            fault: VesselKey::new(keys.twin_fault(id))?,
+            prediction: VesselKey::new(keys.twin_prediction(id))?,
+            alarm: VesselKey::new(keys.twin_alarm(id))?,
+            stats: VesselKey::new(keys.twin_stats(id))?,
+            finding: VesselKey::new(keys.key(id, Topic::TwinFinding))?,
+            gnss: VesselKey::new(keys.gnss(id))?,
+            nmea: VesselKey::new(keys.nmea(id))?,
+            actuators: VesselKey::new(keys.actuators(id))?,
+        })
+    }
+
+    /// The input key of `topic`, if it is one.
+    fn input(&self, topic: Topic) -> Option<&VesselKey> {
+        match topic {
+            Topic::Gnss => Some(&self.gnss),
+            Topic::Nmea => Some(&self.nmea),
+            Topic::Actuators => Some(&self.actuators),
+            _ => None,
+        }
+    }
 }
 
 /// A vessel's task.
@@ -246,10 +321,10 @@ impl VesselTask {
     /// everything queued has been handled) or the vessel falls silent.
     pub async fn run(mut self, mut rx: mpsc::Receiver<VesselEvent>) -> Counters {
         let keys = self.settings.keys.clone();
-        let outputs = match self.output_keys(&keys) {
+        let outputs = match OutputKeys::new(&keys, &self.id) {
             Ok(p) => p,
             Err(e) => {
-                tracing::error!(vessel = self.id.as_str(), "bad output key: {e}");
+                tracing::error!(vessel = self.id.as_str(), "bad key: {e}");
                 return self.counters;
             }
         };
@@ -342,6 +417,8 @@ impl VesselTask {
         self.publish_stats(&outputs).await;
         self.save();
         drop(token);
+        // The last clone of a declared key expression undeclares it.
+        drop(outputs);
         self.counters
     }
 
@@ -364,22 +441,11 @@ impl VesselTask {
         later(wake, TIMER_SLACK_S)
     }
 
-    fn output_keys(&self, keys: &twin_wire::KeySpace) -> zenoh::Result<OutputKeys> {
-        Ok(OutputKeys {
-            state: KeyExpr::try_from(keys.twin_state(&self.id))?,
-            fault: KeyExpr::try_from(keys.twin_fault(&self.id))?,
-            prediction: KeyExpr::try_from(keys.twin_prediction(&self.id))?,
-            alarm: KeyExpr::try_from(keys.twin_alarm(&self.id))?,
-            stats: KeyExpr::try_from(keys.twin_stats(&self.id))?,
-            finding: KeyExpr::try_from(keys.key(&self.id, Topic::TwinFinding))?,
-        })
-    }
-
     /// Puts `bytes` on `key`, blocking when Zenoh's queues are full (nothing
     /// the twin computed is dropped on the way out).
-    async fn put(&self, key: &KeyExpr<'static>, bytes: Vec<u8>) -> zenoh::Result<()> {
+    async fn put(&self, key: &VesselKey, bytes: Vec<u8>) -> zenoh::Result<()> {
         self.session
-            .put(key, bytes)
+            .put(key.declared(&self.session), bytes)
             .congestion_control(CongestionControl::Block)
             .await
     }
@@ -406,6 +472,9 @@ impl VesselTask {
     }
 
     async fn handle_payload(&mut self, topic: Topic, bytes: &[u8], p: &OutputKeys) {
+        if let Some(input) = p.input(topic) {
+            input.declared(&self.session);
+        }
         match topic {
             Topic::Gnss => match decode_gnss_limited(bytes, self.settings.max_payload_bytes) {
                 Ok(d) => {
@@ -676,7 +745,7 @@ impl VesselTask {
         }
     }
 
-    async fn put_json<T: serde::Serialize>(&self, topic: Topic, key: &KeyExpr<'static>, value: &T) {
+    async fn put_json<T: serde::Serialize>(&self, topic: Topic, key: &VesselKey, value: &T) {
         match encode_json(value, OUTPUT_CAPACITY_BYTES) {
             Ok(bytes) => {
                 self.tap_out(topic, &bytes);
@@ -748,4 +817,52 @@ pub(crate) fn encode_json<T: serde::Serialize + ?Sized>(
     let mut bytes = Vec::with_capacity(capacity_bytes);
     serde_json::to_writer(&mut bytes, value)?;
     Ok(bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A session of its own: no links, no scouting.
+    async fn lone_session() -> Session {
+        let mut c = zenoh::Config::default();
+        for (key, value) in [
+            ("mode", "\"peer\""),
+            ("listen/endpoints", "[]"),
+            ("connect/endpoints", "[]"),
+            ("scouting/multicast/enabled", "false"),
+            ("scouting/gossip/enabled", "false"),
+        ] {
+            c.insert_json5(key, value).unwrap();
+        }
+        zenoh::open(c).await.unwrap()
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 1)]
+    async fn a_vessel_key_is_declared_on_its_first_use() {
+        let session = lone_session().await;
+        let fault = VesselKey::new("asv/b1/twin/fault".into()).unwrap();
+        let state = VesselKey::new("asv/b1/twin/state".into()).unwrap();
+        // An undeclared key expression cannot be undeclared: what the
+        // checks below tell apart.
+        assert!(session.undeclare(fault.key.clone()).await.is_err());
+        assert!(
+            fault.declared.get().is_none(),
+            "declared before its first use"
+        );
+        assert!(state.declared.get().is_none());
+
+        let declared = fault.declared(&session).clone();
+        assert_eq!(declared.as_str(), "asv/b1/twin/fault");
+        assert_eq!(fault.declared(&session).as_str(), "asv/b1/twin/fault");
+        let state_declared = state.declared(&session).clone();
+
+        // They are declarations of the session's (undeclaring an undeclared
+        // key fails), which go with the last clone of the key.
+        drop(fault);
+        drop(state);
+        assert!(session.undeclare(declared).await.is_ok());
+        assert!(session.undeclare(state_declared).await.is_ok());
+        session.close().await.unwrap();
+    }
 }

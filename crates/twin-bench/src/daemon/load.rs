@@ -29,9 +29,17 @@
 //! throughput counts faults by their receive instant inside the window.
 //!
 //! # Keys
-//! The generator puts on each vessel's key as a string through one session
-//! (see [`measure`] for why not one declared publisher per key, as
-//! `twin-replay` has in its own session).
+//! The generator puts on each vessel's keys through one session, each key
+//! declared to that session (`declare_keyexpr`), and the subscriber declares
+//! the keys it receives on to its own, as the daemon does: with Zenoh 1.10
+//! only a declared key's route is cached (see [`measure`], and why not one
+//! declared publisher per key, as `twin-replay` has in its own session).
+//!
+//! # Warm-up
+//! At least the warm-up asked for, and until every vessel has been heard
+//! from, the generator is back on its schedule and deliveries come back
+//! promptly, for 2 s in a row ([`CAUGHT_UP_LAG_MS`]); at most
+//! [`WARMUP_CAP`] times the warm-up asked for.
 //!
 //! # Pacing
 //! Paced: the fleet's messages are spread evenly over each period (vessel
@@ -65,7 +73,22 @@ use super::procstat;
 use crate::rng::SplitMix64;
 
 /// The warm-up ends at most this many times its least length.
-pub const WARMUP_CAP: f64 = 3.0;
+pub const WARMUP_CAP: f64 = 6.0;
+
+/// The warm-up ends only once the generator is no further than this behind
+/// its schedule, and the newest delivery took no longer than this from
+/// publish to receive (in [`CAUGHT_UP_SAMPLES`] samples in a row, 20 ms
+/// apart, so for 2 s). A fleet that all starts at once costs a burst of
+/// start-up work (each vessel's token and keys enter Zenoh's resource
+/// trees, at a cost that grows with the fleet), which leaves a backlog, and
+/// then every vessel's first forecast at once; the window should measure
+/// the steady load. At 5,000 vessels with tokens (2026-11-22): every vessel
+/// heard after 7 s, the generator back on schedule after 17 s, deliveries
+/// under a millisecond from 24 s.
+pub const CAUGHT_UP_LAG_MS: f64 = 50.0;
+
+/// See [`CAUGHT_UP_LAG_MS`].
+pub const CAUGHT_UP_SAMPLES: u32 = 100;
 
 /// The fleet's speed over ground, m/s.
 pub const FLEET_SPEED_MPS: f64 = 1.5;
@@ -90,7 +113,8 @@ pub struct PointSpec {
     /// Fixes per second per vessel; `None`: flat out.
     pub rate_hz: Option<f64>,
     /// Least warm-up before the window, s (longer until every vessel has
-    /// been heard from, up to [`WARMUP_CAP`] times this).
+    /// been heard from and the generator is back on its schedule, up to
+    /// [`WARMUP_CAP`] times this).
     pub warmup_s: f64,
     /// Measurement window, s.
     pub window_s: f64,
@@ -181,8 +205,14 @@ pub struct PointResult {
     pub circle_rpm: [f64; 2],
     /// Warm-up actually used, s.
     pub warmup_used_s: f64,
-    /// True when the warm-up ended at its cap with vessels not yet heard.
+    /// True when the warm-up ended at its cap with vessels not yet heard,
+    /// the generator still behind its schedule or deliveries still late
+    /// (see [`CAUGHT_UP_LAG_MS`]).
     pub warmup_capped: bool,
+    /// How far behind its schedule the generator was when the window
+    /// started, ms (paced only).
+    #[serde(default)]
+    pub generator_lag_at_start_ms: Option<f64>,
     /// The window actually measured, s.
     pub window_s: f64,
     /// Fixes stamped inside the window.
@@ -213,7 +243,8 @@ pub struct PointResult {
     pub per_vessel_delivered: Vec<u32>,
     /// Publish to receive, of every delivered message.
     pub latency: Latency,
-    /// The generator's largest lag behind its schedule, ms (paced only).
+    /// The generator's largest lag behind its schedule from the window's
+    /// start to the end of its grace period, ms (paced only).
     pub generator_max_lag_ms: Option<f64>,
     /// CPU time of the whole process over the window, % of one core.
     pub cpu_pct_of_core: Option<f64>,
@@ -375,6 +406,8 @@ struct RxState {
     unparsable: u64,
     measured_bytes: u64,
     measured_count: u64,
+    /// Publish to receive of the newest delivery, in the window or not, ns.
+    newest_latency_ns: i64,
 }
 
 /// The subscriber's side: everything is allocated before the first message.
@@ -418,6 +451,7 @@ impl Receiver {
                 unparsable: 0,
                 measured_bytes: 0,
                 measured_count: 0,
+                newest_latency_ns: i64::MAX,
             }),
         }
     }
@@ -472,9 +506,10 @@ impl Receiver {
         if first {
             st.heard += 1;
         }
+        let latency_ns = received_ns - sent_us * 1000;
+        st.newest_latency_ns = latency_ns;
         if in_window {
             st.delivered += 1;
-            let latency_ns = received_ns - sent_us * 1000;
             st.latency.record(latency_ns.max(0) as u64);
         }
         if self.window.contains(received_ns / 1000) {
@@ -496,6 +531,8 @@ struct GenShared {
     fixes_in_window: AtomicU64,
     actuators_in_window: AtomicU64,
     max_lag_us: AtomicU64,
+    /// The lag of the newest message, us (0 when it was not late).
+    lag_us: AtomicU64,
     gnss_bytes: AtomicU64,
     actuators_bytes: AtomicU64,
     sent: AtomicU64,
@@ -582,10 +619,12 @@ impl Generator {
                 let due_us = begin_us + (i as f64 * 1e6 / per_s) as i64;
                 let now = self.now_us();
                 if due_us > now {
+                    s.lag_us.store(0, Ordering::Relaxed);
                     std::thread::sleep(Duration::from_micros((due_us - now) as u64));
                 } else {
-                    s.max_lag_us
-                        .fetch_max((now - due_us) as u64, Ordering::Relaxed);
+                    let lag = (now - due_us) as u64;
+                    s.lag_us.store(lag, Ordering::Relaxed);
+                    s.max_lag_us.fetch_max(lag, Ordering::Relaxed);
                 }
             }
             // Shaft speeds first, then the fix, each stamped just before
@@ -723,18 +762,46 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
         .wait()
         .map_err(zerr("subscribing"))?;
 
-    // The generator puts through its session on each vessel's key, as a
-    // string: no per-vessel publisher. twin-replay declares a publisher
-    // (which also declares its key expression to the peer), but 2 N
-    // publishers in one session cost O(N^2) to declare in Zenoh 1.10 and
-    // make every put in that session O(N) (each declared key is a node the
-    // routing walks): an artefact of one process standing in for N vessels,
-    // each of which would have its own session with two publishers.
+    // The generator puts through its session on each vessel's key, declared
+    // to that session (`declare_keyexpr`, which stays in the session) so
+    // that its routing finds a node with a cached route, as the daemon
+    // declares its own (see twind's `vessel.rs`): with Zenoh 1.10 a key that
+    // is not a node is routed by a walk over every node under `asv/`, each
+    // vessel's liveliness token among them, and one session standing in for
+    // N vessels would pay that N times over. Not one declared publisher per
+    // key, as `twin-replay` has in its own session: 2 N publishers in one
+    // session cost O(N^2) to declare in Zenoh 1.10 (an artefact of one
+    // process standing in for N vessels, each of which would have its own
+    // session with two publishers).
     let mut vessel_keys = Vec::with_capacity(n);
     for v in 0..n {
         let id = VesselId::new(&vessel_id(v))?;
-        let key = |k: String| KeyExpr::try_from(k).map_err(zerr("a vessel's key"));
+        let key = |k: String| {
+            generator_session
+                .declare_keyexpr(k)
+                .wait()
+                .map_err(zerr("declaring a vessel's key"))
+        };
         vessel_keys.push([key(keys.actuators(&id))?, key(keys.gnss(&id))?]);
+    }
+    // The subscriber, standing for a program that watches the fleet,
+    // declares the keys it receives on to its own session for the same
+    // reason (docs/deploy.md advises it for such programs).
+    let mut received_keys = Vec::with_capacity(n);
+    for v in 0..n {
+        let id = VesselId::new(&vessel_id(v))?;
+        let wanted = match spec.path {
+            Path::Daemon => vec![keys.twin_fault(&id)],
+            Path::Raw => vec![keys.actuators(&id), keys.gnss(&id)],
+        };
+        for k in wanted {
+            received_keys.push(
+                subscriber_session
+                    .declare_keyexpr(k)
+                    .wait()
+                    .map_err(zerr("declaring a received key"))?,
+            );
+        }
     }
     rt.block_on(async {
         let probe = generator_session
@@ -802,15 +869,28 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
     }
 
     // Warm-up: at least `warmup_s`, and until every vessel has been heard
-    // from (every daemon task started and publishing), up to WARMUP_CAP times.
+    // from (every daemon task started and publishing), the generator is
+    // back on its schedule and what it sends comes back promptly (the
+    // start-up backlog has drained), up to WARMUP_CAP times.
     let generator_threads = gen_threads.len();
     let warm_start = Instant::now();
     let cap = Duration::from_secs_f64(spec.warmup_s * WARMUP_CAP);
     let least = Duration::from_secs_f64(spec.warmup_s);
+    let mut on_schedule = 0;
     let warmup_capped = loop {
         let elapsed = warm_start.elapsed();
-        let heard = receiver.lock().heard;
-        if elapsed >= least && heard >= n {
+        let (heard, newest_latency_ns) = {
+            let st = receiver.lock();
+            (st.heard, st.newest_latency_ns)
+        };
+        let lag_ms = shared.lag_us.load(Ordering::Relaxed) as f64 / 1e3;
+        let latency_ms = newest_latency_ns as f64 / 1e6;
+        on_schedule = if lag_ms <= CAUGHT_UP_LAG_MS && latency_ms <= CAUGHT_UP_LAG_MS {
+            on_schedule + 1
+        } else {
+            0
+        };
+        if elapsed >= least && heard >= n && on_schedule >= CAUGHT_UP_SAMPLES {
             break false;
         }
         if elapsed >= cap {
@@ -823,6 +903,8 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
     };
     let warmup_used_s = warm_start.elapsed().as_secs_f64();
     let vessels_heard_at_start = receiver.lock().heard;
+    let generator_lag_at_start_ms = shared.lag_us.load(Ordering::Relaxed) as f64 / 1e3;
+    shared.max_lag_us.store(0, Ordering::Relaxed);
 
     // The window.
     let threads_before = procstat::thread_ticks();
@@ -891,6 +973,7 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
         circle_rpm: circle.rpm,
         warmup_used_s,
         warmup_capped,
+        generator_lag_at_start_ms: spec.rate_hz.map(|_| generator_lag_at_start_ms),
         window_s,
         fixes_sent,
         actuators_sent,
