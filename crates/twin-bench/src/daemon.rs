@@ -725,11 +725,11 @@ impl DaemonReport {
         let _ = writeln!(s);
         let _ = writeln!(
             s,
-            "| vessels | path | run | fixes/s planned | sent | faults (raw: fixes) received/s | lost | p50 | p99 | max | CPU | generator lag (max) | RSS before -> end | per vessel | forecasts/s | sustained |"
+            "| vessels | path | run | fixes/s planned | sent | faults (raw: fixes) received/s | lost | p50 | p99 | max | CPU | warm-up | generator lag (max, window) | RSS before -> end | per vessel | forecasts/s | sustained |"
         );
         let _ = writeln!(
             s,
-            "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"
+            "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"
         );
         let mut paced: Vec<(&str, &PointResult)> = self
             .scaling
@@ -741,7 +741,7 @@ impl DaemonReport {
         for (run, r) in paced {
             let _ = writeln!(
                 s,
-                "| {} | {} | {run} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} -> {} | {} | {} | {} |",
+                "| {} | {} | {run} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} -> {} | {} | {} | {} |",
                 thousands(r.spec.vessels as u64),
                 path_text(r.spec.path),
                 rate_text(r.planned_fixes_per_s.unwrap_or(0.0)),
@@ -752,6 +752,11 @@ impl DaemonReport {
                 p99_text(r),
                 ms_text(r.latency.max_ns),
                 cpu_text(r),
+                format!(
+                    "{:.1} s{}",
+                    r.warmup_used_s,
+                    if r.warmup_capped { " (cap)" } else { "" }
+                ),
                 lag_text(r),
                 mb_text(r.rss_base_kib),
                 mb_text(r.rss_end_kib),
@@ -836,9 +841,11 @@ impl DaemonReport {
                      contract's `asv/{{vessel}}/twin/alive`."
                 ),
                 (true, None) => "Liveliness: one token per vessel at `asv/{vessel}/twin/alive` (the contract; \
-                 `publish.vessel_liveliness = true`). With Zenoh 1.10 every token under `asv/` slows \
-                 the routing of every message under it; `--no-vessel-liveliness` measures the daemon \
-                 without them."
+                 `publish.vessel_liveliness = true`). With Zenoh 1.10 every token under `asv/` is a \
+                 node of every session's resource tree, which the routing of a message on an \
+                 undeclared key walks; the daemon, the generator and the subscriber declare the keys \
+                 they use, whose routes are then cached. `--no-vessel-liveliness` measures the daemon \
+                 without the tokens."
                     .to_string(),
                 (false, _) => "Liveliness: no per-vessel tokens (`publish.vessel_liveliness = false`, \
                  `--no-vessel-liveliness`): the contract's `asv/{vessel}/twin/alive` is not declared."
@@ -886,12 +893,17 @@ impl DaemonReport {
              one thread per core for raw Zenoh, each with its share of the fleet (one thread alone \
              cannot load Zenoh to its limit) \
              (a real fleet spreads them over as many processes, each with its own publishers), \
-             with each vessel's keys as strings (2 N declared publishers in one session would cost \
-             O(N^2) to declare and O(N) per put), blocking when Zenoh's queues are full \
-             (`CongestionControl::Block`, as `twin-replay`). \
-             Where \"sent\" is below \"planned\" the generator was held back (back-pressure, or its \
-             own routing cost per put, which grows with the declarations its session has learned); \
-             the lag column says by how much. Rates are what was actually sent and received."
+             with each vessel's keys declared to its session as key expressions (not as 2 N \
+             publishers, which in one session would cost O(N^2) to declare), blocking when Zenoh's \
+             queues are full (`CongestionControl::Block`, as `twin-replay`). The subscriber declares \
+             the keys it receives on the same way. \
+             Where \"sent\" is below \"planned\" the generator was held back (back-pressure, or \
+             its session busy taking in the daemon's declarations); the lag column says by how much \
+             from the window's start. Rates are what was actually sent and received. \
+             Warm-up: at least the time asked for, then until every vessel has been heard from, \
+             the generator is on its schedule and deliveries come back within 50 ms, for 2 s in a \
+             row (a whole fleet starting at once leaves a backlog to drain); at most 6 times the \
+             time asked for."
                 .into(),
         );
         notes.push(
@@ -937,15 +949,6 @@ impl DaemonReport {
                     thousands(r.vessels_heard as u64),
                     r.generator_lag_at_start_ms
                         .map_or("-".into(), |l| format!("{l:.0} ms"))
-                ));
-            } else if r.warmup_used_s > r.spec.warmup_s + 1.0 {
-                notes.push(format!(
-                    "{} {}: the warm-up took {:.1} s (least {:.1} s) before every vessel was heard \
-                     from and the generator was back on its schedule: the fleet starting at once.",
-                    path_text(r.spec.path),
-                    fleet_text(r),
-                    r.warmup_used_s,
-                    r.spec.warmup_s
                 ));
             }
             if r.unparsable > 0 {
