@@ -893,10 +893,11 @@ impl DaemonReport {
              one thread per core for raw Zenoh, each with its share of the fleet (one thread alone \
              cannot load Zenoh to its limit) \
              (a real fleet spreads them over as many processes, each with its own publishers), \
-             with each vessel's keys declared to its session as key expressions (not as 2 N \
-             publishers, which in one session would cost O(N^2) to declare), blocking when Zenoh's \
-             queues are full (`CongestionControl::Block`, as `twin-replay`). The subscriber declares \
-             the keys it receives on the same way. \
+             blocking when Zenoh's queues are full (`CongestionControl::Block`, as `twin-replay`). \
+             On the daemon's path the generator declares each vessel's keys to its session as key \
+             expressions (not as 2 N publishers, which in one session would cost O(N^2) to \
+             declare), and the subscriber the keys it receives on; raw Zenoh's keys are strings \
+             (no tokens there, so nothing per vessel for its routing to walk). \
              Where \"sent\" is below \"planned\" the generator was held back (back-pressure, or \
              its session busy taking in the daemon's declarations); the lag column says by how much \
              from the window's start. Rates are what was actually sent and received. \

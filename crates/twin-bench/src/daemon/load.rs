@@ -29,10 +29,11 @@
 //! throughput counts faults by their receive instant inside the window.
 //!
 //! # Keys
-//! The generator puts on each vessel's keys through one session, each key
-//! declared to that session (`declare_keyexpr`), and the subscriber declares
-//! the keys it receives on to its own, as the daemon does: with Zenoh 1.10
-//! only a declared key's route is cached (see [`measure`], and why not one
+//! The generator puts on each vessel's keys through one session. On the
+//! daemon's path each key is declared to that session (`declare_keyexpr`),
+//! and the subscriber declares the keys it receives on to its own, as the
+//! daemon does: with Zenoh 1.10 only a declared key's route is cached. Raw
+//! Zenoh's keys stay strings (see [`measure`] for why, and why not one
 //! declared publisher per key, as `twin-replay` has in its own session).
 //!
 //! # Warm-up
@@ -762,45 +763,45 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
         .wait()
         .map_err(zerr("subscribing"))?;
 
-    // The generator puts through its session on each vessel's key, declared
-    // to that session (`declare_keyexpr`, which stays in the session) so
-    // that its routing finds a node with a cached route, as the daemon
-    // declares its own (see twind's `vessel.rs`): with Zenoh 1.10 a key that
-    // is not a node is routed by a walk over every node under `asv/`, each
-    // vessel's liveliness token among them, and one session standing in for
-    // N vessels would pay that N times over. Not one declared publisher per
-    // key, as `twin-replay` has in its own session: 2 N publishers in one
-    // session cost O(N^2) to declare in Zenoh 1.10 (an artefact of one
-    // process standing in for N vessels, each of which would have its own
-    // session with two publishers).
-    let mut vessel_keys = Vec::with_capacity(n);
-    for v in 0..n {
-        let id = VesselId::new(&vessel_id(v))?;
-        let key = |k: String| {
-            generator_session
+    // On the daemon's path the generator puts through its session on each
+    // vessel's key, declared to that session (`declare_keyexpr`, which
+    // stays in the session) so that its routing finds a node with a cached
+    // route, as the daemon declares its own (see twind's `vessel.rs`): with
+    // Zenoh 1.10 a key that is not a node is routed by a walk over every
+    // node under `asv/`, each vessel's liveliness token among them, and one
+    // session standing in for N vessels would pay that N times over. Not one
+    // declared publisher per key, as `twin-replay` has in its own session:
+    // 2 N publishers in one session cost O(N^2) to declare in Zenoh 1.10 (an
+    // artefact of one process standing in for N vessels, each of which
+    // would have its own session with two publishers). The subscriber,
+    // standing for a program that watches the fleet, declares the keys it
+    // receives on to its own session for the same reason (docs/deploy.md
+    // advises it for such programs).
+    //
+    // Raw Zenoh has no tokens, so no per-vessel node for an undeclared key's
+    // routing to walk: its keys stay strings, as a plain Zenoh program's
+    // would. Declaring them costs O(N^2) too (the session searches its
+    // declared keys one by one): 4 N declarations at 40,000 vessels took
+    // longer than a point may.
+    let declare = |session: &zenoh::Session, k: String| -> anyhow::Result<KeyExpr<'static>> {
+        match spec.path {
+            Path::Daemon => session
                 .declare_keyexpr(k)
                 .wait()
-                .map_err(zerr("declaring a vessel's key"))
-        };
-        vessel_keys.push([key(keys.actuators(&id))?, key(keys.gnss(&id))?]);
-    }
-    // The subscriber, standing for a program that watches the fleet,
-    // declares the keys it receives on to its own session for the same
-    // reason (docs/deploy.md advises it for such programs).
+                .map_err(zerr("declaring a vessel's key")),
+            Path::Raw => KeyExpr::try_from(k).map_err(zerr("a vessel's key")),
+        }
+    };
+    let mut vessel_keys = Vec::with_capacity(n);
     let mut received_keys = Vec::with_capacity(n);
     for v in 0..n {
         let id = VesselId::new(&vessel_id(v))?;
-        let wanted = match spec.path {
-            Path::Daemon => vec![keys.twin_fault(&id)],
-            Path::Raw => vec![keys.actuators(&id), keys.gnss(&id)],
-        };
-        for k in wanted {
-            received_keys.push(
-                subscriber_session
-                    .declare_keyexpr(k)
-                    .wait()
-                    .map_err(zerr("declaring a received key"))?,
-            );
+        vessel_keys.push([
+            declare(&generator_session, keys.actuators(&id))?,
+            declare(&generator_session, keys.gnss(&id))?,
+        ]);
+        if spec.path == Path::Daemon {
+            received_keys.push(declare(&subscriber_session, keys.twin_fault(&id))?);
         }
     }
     rt.block_on(async {
