@@ -752,11 +752,7 @@ impl DaemonReport {
                 p99_text(r),
                 ms_text(r.latency.max_ns),
                 cpu_text(r),
-                format!(
-                    "{:.1} s{}",
-                    r.warmup_used_s,
-                    if r.warmup_capped { " (cap)" } else { "" }
-                ),
+                warmup_text(r),
                 lag_text(r),
                 mb_text(r.rss_base_kib),
                 mb_text(r.rss_end_kib),
@@ -903,7 +899,7 @@ impl DaemonReport {
              from the window's start. Rates are what was actually sent and received. \
              Warm-up: at least the time asked for, then until every vessel has been heard from, \
              the generator is on its schedule and deliveries come back within 50 ms, for 2 s in a \
-             row (a whole fleet starting at once leaves a backlog to drain); at most 6 times the \
+             row (a whole fleet starting at once leaves a backlog to drain); at most 12 times the \
              time asked for."
                 .into(),
         );
@@ -995,6 +991,14 @@ impl DaemonReport {
         );
         notes
     }
+}
+
+fn warmup_text(r: &PointResult) -> String {
+    format!(
+        "{:.1} s{}",
+        r.warmup_used_s,
+        if r.warmup_capped { " (cap)" } else { "" }
+    )
 }
 
 fn lag_text(r: &PointResult) -> String {

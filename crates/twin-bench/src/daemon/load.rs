@@ -74,7 +74,7 @@ use super::procstat;
 use crate::rng::SplitMix64;
 
 /// The warm-up ends at most this many times its least length.
-pub const WARMUP_CAP: f64 = 6.0;
+pub const WARMUP_CAP: f64 = 12.0;
 
 /// The warm-up ends only once the generator is no further than this behind
 /// its schedule, and the newest delivery took no longer than this from
