@@ -160,18 +160,20 @@ pub struct PublishSettings {
     /// Statistics are published this often (wall clock), s.
     pub stats_interval_s: f64,
     /// Whether each vessel's twin holds the liveliness token
-    /// `{prefix}/{vessel}/twin/alive` (the contract; default true). With
-    /// Zenoh 1.10 every token under the prefix slows the routing of every
-    /// message under it, so a daemon for a large fleet may turn them off
-    /// (`twin-bench daemon` measures both); `twin/state` and its `stale`
-    /// flag still say whether a twin runs.
+    /// `{prefix}/{vessel}/twin/alive` (the contract; default true). Off,
+    /// `twin/state` and its `stale` flag still say whether a twin runs.
+    /// With Zenoh 1.10 every token under the prefix made the routing of
+    /// every undeclared key dearer; since the daemon declares each vessel's
+    /// keys (`vessel.rs`), turning them off is no longer needed for speed
+    /// (`twin-bench daemon --no-vessel-liveliness` measures it).
     pub vessel_liveliness: bool,
     /// The token's key with `{vessel}` for the vessel id, where it is not
     /// the contract's `{prefix}/{vessel}/twin/alive` (`None`). A key outside
     /// the data prefix with the vessel's chunk two levels down, e.g.
-    /// `asv-twins/alive/{vessel}`, keeps liveliness for a large fleet
-    /// without most of the routing cost: Zenoh 1.10 still looks at every
-    /// child of a top-level node, so `asv-alive/{vessel}` would not
+    /// `asv-twins/alive/{vessel}`, kept the tokens off the routing of
+    /// undeclared keys under the prefix (Zenoh 1.10 looks at every child of
+    /// a top-level node, so `asv-alive/{vessel}` would not); since the
+    /// daemon declares each vessel's keys it is no longer needed for speed
     /// (docs/daemon-performance.md).
     pub vessel_liveliness_key: Option<String>,
     /// Threads computing the forecasts, at a lower scheduling priority than
