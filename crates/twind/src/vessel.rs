@@ -125,7 +125,7 @@ impl std::fmt::Display for VesselKey {
 
 /// The vessel's keys: its outputs, and its inputs (declared only so that
 /// their routing in the daemon's session is cached; see [`VesselKey`]).
-struct OutputKeys {
+struct VesselKeys {
     state: VesselKey,
     fault: VesselKey,
     prediction: VesselKey,
@@ -137,7 +137,7 @@ struct OutputKeys {
     actuators: VesselKey,
 }
 
-impl OutputKeys {
+impl VesselKeys {
     fn new(keys: &twin_wire::KeySpace, id: &VesselId) -> zenoh::Result<Self> {
         Ok(Self {
             state: VesselKey::new(keys.twin_state(id))?,
@@ -321,7 +321,7 @@ impl VesselTask {
     /// everything queued has been handled) or the vessel falls silent.
     pub async fn run(mut self, mut rx: mpsc::Receiver<VesselEvent>) -> Counters {
         let keys = self.settings.keys.clone();
-        let outputs = match OutputKeys::new(&keys, &self.id) {
+        let vessel_keys = match VesselKeys::new(&keys, &self.id) {
             Ok(p) => p,
             Err(e) => {
                 tracing::error!(vessel = self.id.as_str(), "bad key: {e}");
@@ -358,13 +358,13 @@ impl VesselTask {
                 done = answer_of(&mut self.diagnosis), if self.diagnosis.is_some() => {
                     self.diagnosis = None;
                     if let Some(findings) = done {
-                        self.publish_findings(findings, &outputs).await;
+                        self.publish_findings(findings, &vessel_keys).await;
                     }
                 }
                 json = answer_of(&mut self.forecast), if self.forecast.is_some() => {
                     self.forecast = None;
                     if let Some(json) = json {
-                        self.publish_prediction(json, &outputs).await;
+                        self.publish_prediction(json, &vessel_keys).await;
                     }
                     if std::mem::take(&mut self.forecast_wanted) {
                         self.request_forecast();
@@ -373,7 +373,7 @@ impl VesselTask {
                 ev = rx.recv() => match ev {
                     Some(ev) => {
                         self.last_event_wall = Instant::now();
-                        self.handle(ev, &outputs).await;
+                        self.handle(ev, &vessel_keys).await;
                         // A fix after a stale state, or the first unsaved
                         // one, brings a deadline nearer than the armed one.
                         if std::mem::take(&mut self.rearm_timer) {
@@ -388,10 +388,10 @@ impl VesselTask {
                         tracing::info!(vessel = self.id.as_str(), "silent: dropping the vessel's twin");
                         break;
                     }
-                    self.check_stale(&outputs).await;
+                    self.check_stale(&vessel_keys).await;
                     if now.duration_since(timers.last_stats).as_secs_f64() >= self.settings.publish.stats_interval_s {
                         timers.last_stats = now;
-                        self.publish_stats(&outputs).await;
+                        self.publish_stats(&vessel_keys).await;
                     }
                     if self.unsaved && now.duration_since(timers.last_save).as_secs_f64() >= self.settings.persistence.save_interval_s {
                         timers.last_save = now;
@@ -406,19 +406,19 @@ impl VesselTask {
         // replay's last forecast included).
         while let Some(answer) = self.forecast.take() {
             if let Ok(Some(json)) = answer.await {
-                self.publish_prediction(json, &outputs).await;
+                self.publish_prediction(json, &vessel_keys).await;
             }
             if std::mem::take(&mut self.forecast_wanted) {
                 self.request_forecast();
             }
         }
         // Last words: state, fault and statistics, then the calibration.
-        self.publish_state_and_fault(&outputs, false).await;
-        self.publish_stats(&outputs).await;
+        self.publish_state_and_fault(&vessel_keys, false).await;
+        self.publish_stats(&vessel_keys).await;
         self.save();
         drop(token);
         // The last clone of a declared key expression undeclares it.
-        drop(outputs);
+        drop(vessel_keys);
         self.counters
     }
 
@@ -462,7 +462,7 @@ impl VesselTask {
         }
     }
 
-    async fn handle(&mut self, ev: VesselEvent, p: &OutputKeys) {
+    async fn handle(&mut self, ev: VesselEvent, p: &VesselKeys) {
         match ev {
             VesselEvent::Refused { reason, detail } => {
                 self.counters.reject(self.id.as_str(), reason, &detail)
@@ -471,7 +471,7 @@ impl VesselTask {
         }
     }
 
-    async fn handle_payload(&mut self, topic: Topic, bytes: &[u8], p: &OutputKeys) {
+    async fn handle_payload(&mut self, topic: Topic, bytes: &[u8], p: &VesselKeys) {
         if let Some(input) = p.input(topic) {
             input.declared(&self.session);
         }
@@ -561,7 +561,7 @@ impl VesselTask {
         }
     }
 
-    async fn on_fix(&mut self, fix: &GnssFix, p: &OutputKeys) {
+    async fn on_fix(&mut self, fix: &GnssFix, p: &VesselKeys) {
         match self.twin.on_gnss(fix) {
             Ok(out) => {
                 // The armed timer was set without a stale or a save deadline.
@@ -629,7 +629,7 @@ impl VesselTask {
     }
 
     /// Publishes a diagnosis when its causes differ from the last published.
-    async fn publish_findings(&mut self, findings: FindingsMessage, p: &OutputKeys) {
+    async fn publish_findings(&mut self, findings: FindingsMessage, p: &VesselKeys) {
         let causes = findings.causes();
         if self.published_causes.as_ref() == Some(&causes) {
             return;
@@ -645,7 +645,7 @@ impl VesselTask {
             .await;
     }
 
-    async fn publish_step(&mut self, out: &StepOutput, p: &OutputKeys) {
+    async fn publish_step(&mut self, out: &StepOutput, p: &VesselKeys) {
         let vessel = self.id.as_str();
         let state = StateMessage::new(vessel, &out.state, false, self.replay);
         self.put_state(&state, p).await;
@@ -668,7 +668,7 @@ impl VesselTask {
         }
     }
 
-    async fn publish_alarm(&self, change: &StatusChange, p: &OutputKeys) {
+    async fn publish_alarm(&self, change: &StatusChange, p: &VesselKeys) {
         let alarm = AlarmMessage::new(self.id.as_str(), change, self.replay);
         tracing::info!(
             vessel = self.id.as_str(),
@@ -703,14 +703,14 @@ impl VesselTask {
         }
     }
 
-    async fn publish_prediction(&self, json: Vec<u8>, p: &OutputKeys) {
+    async fn publish_prediction(&self, json: Vec<u8>, p: &VesselKeys) {
         self.tap_out(Topic::TwinPrediction, &json);
         if let Err(e) = self.put(&p.prediction, json).await {
             tracing::warn!(key = %p.prediction, "not published: {e}");
         }
     }
 
-    async fn put_state(&self, state: &StateMessage, p: &OutputKeys) {
+    async fn put_state(&self, state: &StateMessage, p: &VesselKeys) {
         let Ok(bytes) = encode_json(state, OUTPUT_CAPACITY_BYTES) else {
             return;
         };
@@ -757,7 +757,7 @@ impl VesselTask {
         }
     }
 
-    async fn publish_state_and_fault(&self, p: &OutputKeys, stale: bool) {
+    async fn publish_state_and_fault(&self, p: &VesselKeys, stale: bool) {
         let Some(state) = self.twin.state_report() else {
             return;
         };
@@ -772,7 +772,7 @@ impl VesselTask {
         .await;
     }
 
-    async fn check_stale(&mut self, p: &OutputKeys) {
+    async fn check_stale(&mut self, p: &VesselKeys) {
         let Some(last) = self.last_fix_wall else {
             return;
         };
@@ -797,7 +797,7 @@ impl VesselTask {
         }
     }
 
-    async fn publish_stats(&self, p: &OutputKeys) {
+    async fn publish_stats(&self, p: &VesselKeys) {
         self.put_json(Topic::TwinStats, &p.stats, &self.stats_message())
             .await;
     }
