@@ -897,10 +897,10 @@ impl DaemonReport {
              Where \"sent\" is below \"planned\" the generator was held back (back-pressure, or \
              its session busy taking in the daemon's declarations); the lag column says by how much \
              from the window's start. Rates are what was actually sent and received. \
-             Warm-up: at least the time asked for, then until every vessel has been heard from, \
-             the generator is on its schedule and deliveries come back within 50 ms, for 2 s in a \
-             row (a whole fleet starting at once leaves a backlog to drain); at most 12 times the \
-             time asked for."
+             Warm-up: at least the time asked for, then until every vessel has been heard from \
+             and, paced, the generator is on its schedule and deliveries come back within 50 ms, \
+             for 2 s in a row (a whole fleet starting at once leaves a backlog to drain); at most \
+             12 times the time asked for."
                 .into(),
         );
         notes.push(

@@ -38,8 +38,8 @@
 //!
 //! # Warm-up
 //! At least the warm-up asked for, and until every vessel has been heard
-//! from, the generator is back on its schedule and deliveries come back
-//! promptly, for 2 s in a row ([`CAUGHT_UP_LAG_MS`]); at most
+//! from and, paced, the generator is back on its schedule and deliveries
+//! come back promptly, for 2 s in a row ([`caught_up`]); at most
 //! [`WARMUP_CAP`] times the warm-up asked for.
 //!
 //! # Pacing
@@ -91,6 +91,14 @@ pub const CAUGHT_UP_LAG_MS: f64 = 50.0;
 /// See [`CAUGHT_UP_LAG_MS`].
 pub const CAUGHT_UP_SAMPLES: u32 = 100;
 
+/// Whether one warm-up sample counts towards the end of the warm-up: paced,
+/// the generator no more than [`CAUGHT_UP_LAG_MS`] behind its schedule and
+/// the newest delivery no slower than that; flat out always (there is no
+/// schedule, and the latency is queueing by design).
+pub fn caught_up(paced: bool, generator_lag_ms: f64, newest_latency_ms: f64) -> bool {
+    !paced || (generator_lag_ms <= CAUGHT_UP_LAG_MS && newest_latency_ms <= CAUGHT_UP_LAG_MS)
+}
+
 /// The fleet's speed over ground, m/s.
 pub const FLEET_SPEED_MPS: f64 = 1.5;
 
@@ -114,8 +122,9 @@ pub struct PointSpec {
     /// Fixes per second per vessel; `None`: flat out.
     pub rate_hz: Option<f64>,
     /// Least warm-up before the window, s (longer until every vessel has
-    /// been heard from and the generator is back on its schedule, up to
-    /// [`WARMUP_CAP`] times this).
+    /// been heard from and, paced, the generator is back on its schedule and
+    /// deliveries are prompt ([`caught_up`]), up to [`WARMUP_CAP`] times
+    /// this).
     pub warmup_s: f64,
     /// Measurement window, s.
     pub window_s: f64,
@@ -886,7 +895,7 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
         };
         let lag_ms = shared.lag_us.load(Ordering::Relaxed) as f64 / 1e3;
         let latency_ms = newest_latency_ns as f64 / 1e6;
-        on_schedule = if lag_ms <= CAUGHT_UP_LAG_MS && latency_ms <= CAUGHT_UP_LAG_MS {
+        on_schedule = if caught_up(spec.rate_hz.is_some(), lag_ms, latency_ms) {
             on_schedule + 1
         } else {
             0
@@ -1069,5 +1078,29 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
                 ..result_without_daemon
             })
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{CAUGHT_UP_LAG_MS, caught_up};
+
+    #[test]
+    fn a_paced_warm_up_waits_for_the_schedule_and_prompt_deliveries() {
+        let late = CAUGHT_UP_LAG_MS + 1.0;
+        assert!(caught_up(true, 0.0, 0.2));
+        assert!(caught_up(true, CAUGHT_UP_LAG_MS, CAUGHT_UP_LAG_MS));
+        assert!(!caught_up(true, late, 0.2), "the generator is behind");
+        assert!(!caught_up(true, 0.0, late), "deliveries are late");
+        // A fresh receiver's newest latency before any delivery.
+        assert!(!caught_up(true, 0.0, i64::MAX as f64 / 1e6));
+    }
+
+    #[test]
+    fn a_flat_out_warm_up_does_not_wait_for_prompt_deliveries() {
+        // Flat out the latency is queueing by design and there is no
+        // schedule: only the vessels heard from end its warm-up.
+        assert!(caught_up(false, 0.0, 150.0));
+        assert!(caught_up(false, 0.0, i64::MAX as f64 / 1e6));
     }
 }
