@@ -879,9 +879,10 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
     }
 
     // Warm-up: at least `warmup_s`, and until every vessel has been heard
-    // from (every daemon task started and publishing), the generator is
-    // back on its schedule and what it sends comes back promptly (the
-    // start-up backlog has drained), up to WARMUP_CAP times.
+    // from (every daemon task started and publishing) and, paced, the
+    // generator is back on its schedule and what it sends comes back
+    // promptly (the start-up backlog has drained; `caught_up`), up to
+    // WARMUP_CAP times.
     let generator_threads = gen_threads.len();
     let warm_start = Instant::now();
     let cap = Duration::from_secs_f64(spec.warmup_s * WARMUP_CAP);
