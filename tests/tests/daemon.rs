@@ -172,7 +172,7 @@ async fn a_replayed_trial_gives_the_daemon_the_offline_estimates() {
         StateMessage::new("otter-1", &expected.state_report().unwrap(), false, true);
     assert_eq!(st.last().unwrap(), &offline_state);
     let counters = &summary.vessels["otter-1"];
-    assert_eq!(counters.accepted["gnss"] as usize, fixes);
+    assert_eq!(counters.accepted()["gnss"] as usize, fixes);
     assert_eq!(counters.total_rejected(), 0, "{:?}", counters.rejected);
     // Forecasts (computed on the forecast threads) come in order, and the
     // last one is the offline twin's forecast from the same messages.

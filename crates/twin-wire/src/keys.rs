@@ -279,12 +279,19 @@ impl KeySpace {
     /// Parses a received key into its vessel id and topic. The key must be
     /// exactly `{prefix}/{vessel}/{suffix}` with a valid id and a known topic.
     pub fn parse(&self, key: &str) -> Result<(VesselId, Topic), KeyError> {
+        let (vessel, topic) = self.parse_borrowed(key)?;
+        Ok((VesselId(vessel.to_owned()), topic))
+    }
+
+    /// [`KeySpace::parse`] without allocating: the vessel id (validated) is
+    /// a slice of `key`.
+    pub fn parse_borrowed<'k>(&self, key: &'k str) -> Result<(&'k str, Topic), KeyError> {
         let rest = key
             .strip_prefix(self.prefix.as_str())
             .and_then(|r| r.strip_prefix('/'))
             .ok_or(KeyError::WrongPrefix)?;
         let (vessel, suffix) = rest.split_once('/').ok_or(KeyError::MissingTopic)?;
-        let vessel = VesselId::new(vessel)?;
+        validate_vessel_id(vessel)?;
         let topic = Topic::from_suffix(suffix).ok_or(KeyError::UnknownTopic)?;
         Ok((vessel, topic))
     }

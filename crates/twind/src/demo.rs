@@ -158,7 +158,8 @@ pub async fn run(
     for (vessel, counters) in &summary.vessels {
         println!(
             "  {vessel}: accepted {:?}, rejected {:?}",
-            counters.accepted, counters.rejected
+            counters.accepted(),
+            counters.rejected
         );
     }
     if let Some(f) = last.get("otter-sim") {

@@ -38,7 +38,7 @@ pub mod stats;
 pub mod vessel;
 
 use std::collections::HashMap;
-use std::sync::{Arc, RwLock};
+use std::sync::{Arc, Mutex, RwLock};
 
 use tokio::sync::mpsc;
 use tokio_util::sync::CancellationToken;
@@ -52,8 +52,65 @@ use crate::settings::Settings;
 use crate::stats::Counters;
 use crate::vessel::{VesselEvent, VesselTask};
 
-/// The latest state payload of every vessel, for the queryable.
-pub type LatestStates = Arc<RwLock<HashMap<String, Vec<u8>>>>;
+/// The latest state payload of every vessel, for the queryable and the web
+/// page. Each vessel writes its own slot, registered once, so the fixes of
+/// different vessels never wait on one lock (the map's write lock is taken
+/// only when a vessel is first seen).
+#[derive(Debug, Clone, Default)]
+pub struct LatestStates(Arc<RwLock<HashMap<String, StateSlot>>>);
+
+/// One vessel's latest state payload (empty until its first state).
+#[derive(Debug, Clone, Default)]
+pub struct StateSlot(Arc<Mutex<Vec<u8>>>);
+
+impl LatestStates {
+    /// The slot of `vessel`, made empty the first time.
+    pub fn slot(&self, vessel: &str) -> StateSlot {
+        if let Ok(map) = self.0.read()
+            && let Some(slot) = map.get(vessel)
+        {
+            return slot.clone();
+        }
+        match self.0.write() {
+            Ok(mut map) => map.entry(vessel.to_string()).or_default().clone(),
+            // A poisoned map: a slot of its own, written but never read.
+            Err(_) => StateSlot::default(),
+        }
+    }
+
+    /// Sets the latest state of `vessel`.
+    pub fn set(&self, vessel: &str, json: &[u8]) {
+        self.slot(vessel).set(json);
+    }
+
+    /// Every vessel's latest state, sorted by vessel; vessels without a
+    /// state yet are left out.
+    pub fn snapshot(&self) -> Vec<(String, Vec<u8>)> {
+        let slots: Vec<(String, StateSlot)> = match self.0.read() {
+            Ok(map) => map.iter().map(|(k, v)| (k.clone(), v.clone())).collect(),
+            Err(_) => Vec::new(),
+        };
+        let mut out: Vec<(String, Vec<u8>)> = slots
+            .into_iter()
+            .filter_map(|(vessel, slot)| {
+                let json = slot.0.lock().ok()?.clone();
+                (!json.is_empty()).then_some((vessel, json))
+            })
+            .collect();
+        out.sort_by(|a, b| a.0.cmp(&b.0));
+        out
+    }
+}
+
+impl StateSlot {
+    /// Replaces the payload (reusing the slot's allocation).
+    pub fn set(&self, json: &[u8]) {
+        if let Ok(mut bytes) = self.0.lock() {
+            bytes.clear();
+            bytes.extend_from_slice(json);
+        }
+    }
+}
 
 /// One output as published, handed to in-process listeners (the web page).
 #[derive(Debug, Clone)]
@@ -174,21 +231,16 @@ pub async fn run_observed(
                     _ = shutdown.cancelled() => break,
                     q = queryable.recv_async() => match q { Ok(q) => q, Err(_) => break },
                 };
-                let replies: Vec<(String, Vec<u8>)> = match latest.read() {
-                    Ok(map) => map
-                        .iter()
-                        .filter_map(|(vessel, bytes)| {
-                            let id = twin_wire::VesselId::new(vessel).ok()?;
-                            let key = keys.twin_state(&id);
-                            let ke = KeyExpr::try_from(key.as_str()).ok()?;
-                            query
-                                .key_expr()
-                                .intersects(&ke)
-                                .then(|| (key, bytes.clone()))
-                        })
-                        .collect(),
-                    Err(_) => Vec::new(),
-                };
+                let replies: Vec<(String, Vec<u8>)> = latest
+                    .snapshot()
+                    .into_iter()
+                    .filter_map(|(vessel, bytes)| {
+                        let id = twin_wire::VesselId::new(&vessel).ok()?;
+                        let key = keys.twin_state(&id);
+                        let ke = KeyExpr::try_from(key.as_str()).ok()?;
+                        query.key_expr().intersects(&ke).then_some((key, bytes))
+                    })
+                    .collect();
                 for (key, bytes) in replies {
                     if let Err(e) = query.reply(key, bytes).await {
                         tracing::warn!("query not answered: {e}");
@@ -239,7 +291,7 @@ pub async fn run_observed(
             Err(_) => break,
         };
         let key = sample.key_expr().as_str();
-        let (id, topic) = match settings.keys.parse(key) {
+        let (vessel, topic) = match settings.keys.parse_borrowed(key) {
             Ok(parsed) => parsed,
             Err(e) => {
                 summary
@@ -251,7 +303,7 @@ pub async fn run_observed(
         if !matches!(topic, Topic::Gnss | Topic::Nmea | Topic::Actuators) {
             summary
                 .refused
-                .reject(id.as_str(), "not_an_input_topic", &key.to_string());
+                .reject(vessel, "not_an_input_topic", &key.to_string());
             continue;
         }
         let len = sample.payload().len();
@@ -272,21 +324,24 @@ pub async fn run_observed(
             }
         };
         // Looked up by the borrowed id: no allocation for a known vessel.
-        let tx = match vessels.get(id.as_str()).filter(|tx| !tx.is_closed()) {
+        let tx = match vessels.get(vessel).filter(|tx| !tx.is_closed()) {
             Some(tx) => tx.clone(),
             None => {
                 if vessels.len() >= settings.vessels.max_vessels {
                     summary.refused.reject(
-                        id.as_str(),
+                        vessel,
                         "too_many_vessels",
                         &settings.vessels.max_vessels,
                     );
                     continue;
                 }
-                let vessel = id.as_str().to_string();
+                // Validated by `parse_borrowed`: cannot fail.
+                let Ok(id) = twin_wire::VesselId::new(vessel) else {
+                    continue;
+                };
                 let (tx, rx) = mpsc::channel(settings.vessels.queue_depth);
                 let task = VesselTask::new(
-                    id.clone(),
+                    id,
                     settings.clone(),
                     session.clone(),
                     latest.clone(),
@@ -295,12 +350,12 @@ pub async fn run_observed(
                     forecaster.clone(),
                 );
                 let done = done_tx.clone();
-                let name = vessel.clone();
+                let name = vessel.to_string();
                 tracker.spawn(async move {
                     let counters = task.run(rx).await;
                     let _ = done.send((name, counters));
                 });
-                vessels.insert(vessel, tx.clone());
+                vessels.insert(vessel.to_string(), tx.clone());
                 tx
             }
         };
@@ -308,7 +363,7 @@ pub async fn run_observed(
         // Waits while the vessel's queue is full: back-pressure, not loss.
         if tx.send(event).await.is_err() {
             summary.refused.reject(
-                id.as_str(),
+                vessel,
                 "vessel_task_ended",
                 &"the task ended before the message",
             );
@@ -332,4 +387,28 @@ pub async fn run_observed(
         "twind stopped"
     );
     Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn latest_states_keep_each_vessels_newest_sorted_without_empty_slots() {
+        let latest = LatestStates::default();
+        let b = latest.slot("b");
+        let _never_written = latest.slot("c");
+        b.set(b"old");
+        latest.set("a", b"first");
+        b.set(b"new");
+        // A second slot for a vessel is the same slot.
+        latest.slot("a").set(b"second");
+        assert_eq!(
+            latest.snapshot(),
+            vec![
+                ("a".to_string(), b"second".to_vec()),
+                ("b".to_string(), b"new".to_vec()),
+            ]
+        );
+    }
 }

@@ -52,7 +52,7 @@ use crate::forecast::{ForecastJob, Forecaster};
 use crate::persist;
 use crate::settings::Settings;
 use crate::stats::Counters;
-use crate::{LatestStates, OutputEvent, OutputTap};
+use crate::{LatestStates, OutputEvent, OutputTap, StateSlot};
 
 /// What the dispatcher hands a vessel's task.
 #[derive(Debug)]
@@ -168,7 +168,8 @@ pub struct VesselTask {
     id: VesselId,
     settings: Arc<Settings>,
     session: Session,
-    latest: LatestStates,
+    /// This vessel's slot of the daemon's latest states.
+    latest: StateSlot,
     tap: OutputTap,
     twin: VesselTwin,
     nmea: NmeaDecoder,
@@ -286,10 +287,10 @@ impl VesselTask {
             .enabled
             .then(|| LiveMonitor::new(settings.diagnose.monitor));
         Self {
+            latest: latest.slot(id.as_str()),
             id,
             settings,
             session,
-            latest,
             tap,
             twin,
             nmea: NmeaDecoder::new(ReadOptions::default()),
@@ -714,18 +715,7 @@ impl VesselTask {
         let Ok(bytes) = encode_json(state, OUTPUT_CAPACITY_BYTES) else {
             return;
         };
-        if let Ok(mut map) = self.latest.write() {
-            // The vessel's slot is reused: no allocation once it exists.
-            match map.get_mut(self.id.as_str()) {
-                Some(slot) => {
-                    slot.clear();
-                    slot.extend_from_slice(&bytes);
-                }
-                None => {
-                    map.insert(self.id.as_str().to_string(), bytes.clone());
-                }
-            }
-        }
+        self.latest.set(&bytes);
         self.tap_out(Topic::TwinState, &bytes);
         if let Err(e) = self.put(&p.state, bytes).await {
             tracing::warn!(vessel = self.id.as_str(), "state not published: {e}");
@@ -792,7 +782,7 @@ impl VesselTask {
     pub fn stats_message(&self) -> StatsMessage {
         StatsMessage {
             vessel: self.id.as_str().to_string(),
-            accepted: self.counters.accepted.clone(),
+            accepted: self.counters.accepted(),
             rejected: self.counters.rejected.clone(),
         }
     }

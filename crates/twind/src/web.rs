@@ -324,13 +324,12 @@ impl Hub {
             kind: "hello",
             json: self.hello.clone(),
         }];
-        let states: HashMap<String, Arc<str>> = match self.latest.read() {
-            Ok(map) => map
-                .iter()
-                .map(|(k, v)| (k.clone(), Arc::from(String::from_utf8_lossy(v).as_ref())))
-                .collect(),
-            Err(_) => HashMap::new(),
-        };
+        let states: HashMap<String, Arc<str>> = self
+            .latest
+            .snapshot()
+            .into_iter()
+            .map(|(k, v)| (k, Arc::from(String::from_utf8_lossy(&v).as_ref())))
+            .collect();
         let Ok(cache) = self.cache.lock() else {
             return out;
         };
@@ -706,11 +705,7 @@ async fn asset(method: Method, uri: axum::http::Uri) -> Response {
 }
 
 async fn vessels(State(app): State<AppState>) -> Response {
-    let mut items: Vec<(String, Vec<u8>)> = match app.hub.latest.read() {
-        Ok(map) => map.iter().map(|(k, v)| (k.clone(), v.clone())).collect(),
-        Err(_) => Vec::new(),
-    };
-    items.sort_by(|a, b| a.0.cmp(&b.0));
+    let items = app.hub.latest.snapshot();
     let mut body = String::from("[");
     for (i, (_, json)) in items.iter().enumerate() {
         if i > 0 {

@@ -1064,8 +1064,8 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
                         .values()
                         .chain(std::iter::once(&summary.refused))
                     {
-                        for (k, v) in &counters.accepted {
-                            *c.accepted.entry(k.clone()).or_default() += v;
+                        for (k, v) in counters.accepted() {
+                            *c.accepted.entry(k).or_default() += v;
                         }
                         for (k, v) in &counters.rejected {
                             *c.rejected.entry(k.clone()).or_default() += v;
