@@ -83,11 +83,12 @@ pub enum VesselEvent {
 /// O(N^2) (421 vessels sustained). A declared key expression is a node
 /// whose route is cached, so the daemon's routing of the vessel's inputs
 /// and of its own outputs no longer walks the tree (`twin-bench daemon`
-/// measured it; docs/daemon-performance.md). A declared key expression stays
-/// in the daemon's session: unlike a publisher or a token it is not
-/// announced to other sessions, so it adds nothing to theirs. Declaring
-/// costs one walk, so a key is declared only once it is used (a vessel
-/// sending fixes over NMEA never has its `gnss` key declared).
+/// measured it; docs/daemon-performance.md). Unlike a publisher or a token
+/// a declared key expression is not announced when declared, though Zenoh
+/// may declare it to a peer it routes the key to (which then makes a node
+/// too). Declaring costs a walk, so a key is declared only once it is
+/// used (a vessel sending fixes over NMEA never has its `gnss` key
+/// declared).
 /// Not a declared Zenoh publisher: six of those per vessel made the whole
 /// fleet slower as it grew.
 struct VesselKey {
@@ -168,8 +169,11 @@ pub struct VesselTask {
     id: VesselId,
     settings: Arc<Settings>,
     session: Session,
-    /// This vessel's slot of the daemon's latest states.
-    latest: StateSlot,
+    /// The daemon's latest states...
+    latest: LatestStates,
+    /// ... and this vessel's slot there, made at its first state (a vessel
+    /// that never has one leaves nothing behind).
+    latest_slot: OnceLock<StateSlot>,
     tap: OutputTap,
     twin: VesselTwin,
     nmea: NmeaDecoder,
@@ -287,10 +291,11 @@ impl VesselTask {
             .enabled
             .then(|| LiveMonitor::new(settings.diagnose.monitor));
         Self {
-            latest: latest.slot(id.as_str()),
             id,
             settings,
             session,
+            latest,
+            latest_slot: OnceLock::new(),
             tap,
             twin,
             nmea: NmeaDecoder::new(ReadOptions::default()),
@@ -715,7 +720,9 @@ impl VesselTask {
         let Ok(bytes) = encode_json(state, OUTPUT_CAPACITY_BYTES) else {
             return;
         };
-        self.latest.set(&bytes);
+        self.latest_slot
+            .get_or_init(|| self.latest.slot(self.id.as_str()))
+            .set(&bytes);
         self.tap_out(Topic::TwinState, &bytes);
         if let Err(e) = self.put(&p.state, bytes).await {
             tracing::warn!(vessel = self.id.as_str(), "state not published: {e}");

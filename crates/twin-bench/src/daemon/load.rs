@@ -773,8 +773,8 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
         .map_err(zerr("subscribing"))?;
 
     // On the daemon's path the generator puts through its session on each
-    // vessel's key, declared to that session (`declare_keyexpr`, which
-    // stays in the session) so that its routing finds a node with a cached
+    // vessel's key, declared to that session (`declare_keyexpr`, not
+    // announced when declared) so that its routing finds a node with a cached
     // route, as the daemon declares its own (see twind's `vessel.rs`): with
     // Zenoh 1.10 a key that is not a node is routed by a walk over every
     // node under `asv/`, each vessel's liveliness token among them, and one
