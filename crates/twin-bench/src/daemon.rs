@@ -974,10 +974,13 @@ impl DaemonReport {
             }
             if r.unparsable > 0 {
                 notes.push(format!(
-                    "{} {}: {} messages the subscriber could not attribute.",
+                    "{} {}: {} messages the subscriber could not attribute{}.",
                     path_text(r.spec.path),
                     fleet_text(r),
-                    r.unparsable
+                    r.unparsable,
+                    r.unparsable_first
+                        .as_deref()
+                        .map_or(String::new(), |f| format!(" (the first: {f})"))
                 ));
             }
         }

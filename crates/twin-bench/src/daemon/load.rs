@@ -243,6 +243,9 @@ pub struct PointResult {
     pub repeats: u64,
     /// Messages the subscriber could not attribute (bad key or payload).
     pub unparsable: u64,
+    /// The first of them: why, its key and the start of its payload.
+    #[serde(default)]
+    pub unparsable_first: Option<String>,
     /// Vessels with at least one delivery in the window.
     pub vessels_delivered: usize,
     /// Vessels heard from at all (a fault, or a raw fix) by the end.
@@ -414,10 +417,27 @@ struct RxState {
     received_in_window: u64,
     repeats: u64,
     unparsable: u64,
+    unparsable_first: Option<String>,
     measured_bytes: u64,
     measured_count: u64,
     /// Publish to receive of the newest delivery, in the window or not, ns.
     newest_latency_ns: i64,
+}
+
+impl RxState {
+    /// Counts a message that cannot be attributed, keeping the first for
+    /// the report (the key and up to 160 bytes of its payload).
+    fn count_unparsable(&mut self, why: &str, key: &str, payload: &[u8]) {
+        self.unparsable += 1;
+        if self.unparsable_first.is_none() {
+            let head = &payload[..payload.len().min(160)];
+            self.unparsable_first = Some(format!(
+                "{why}: {key} ({} B) {}",
+                payload.len(),
+                String::from_utf8_lossy(head)
+            ));
+        }
+    }
 }
 
 /// The subscriber's side: everything is allocated before the first message.
@@ -459,6 +479,7 @@ impl Receiver {
                 received_in_window: 0,
                 repeats: 0,
                 unparsable: 0,
+                unparsable_first: None,
                 measured_bytes: 0,
                 measured_count: 0,
                 newest_latency_ns: i64::MAX,
@@ -478,7 +499,11 @@ impl Receiver {
             (Path::Daemon, Some("twin/fault")) | (Path::Raw, Some("gnss")) => true,
             (Path::Raw, Some("actuators")) => false,
             _ => {
-                self.lock().unparsable += 1;
+                self.lock().count_unparsable(
+                    "not a measured topic",
+                    key,
+                    &sample.payload().to_bytes(),
+                );
                 return;
             }
         };
@@ -494,13 +519,19 @@ impl Receiver {
         let mut guard = self.lock();
         let st = &mut *guard;
         let (Some(v), Some(sent_us)) = (index, sent_us) else {
-            st.unparsable += 1;
+            let why = if index.is_none() {
+                "no vessel index in the key"
+            } else {
+                "no time in the payload"
+            };
+            st.count_unparsable(why, key, &bytes);
             return;
         };
-        let Some(vessel) = st.vessels.get_mut(v) else {
-            st.unparsable += 1;
+        if v >= st.vessels.len() {
+            st.count_unparsable("vessel index out of range", key, &bytes);
             return;
-        };
+        }
+        let vessel = &mut st.vessels[v];
         st.measured_bytes += bytes.len() as u64;
         st.measured_count += 1;
         if sent_us <= vessel.last_time_us {
@@ -966,6 +997,7 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
                 st.received_in_window,
                 st.repeats,
                 st.unparsable,
+                st.unparsable_first.clone(),
                 Latency::of(&st.latency),
                 if st.measured_count > 0 {
                     st.measured_bytes as f64 / st.measured_count as f64
@@ -975,8 +1007,16 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
             ),
         )
     };
-    let (heard, delivered, received_in_window, repeats, unparsable, latency, received_bytes_mean) =
-        rx_summary;
+    let (
+        heard,
+        delivered,
+        received_in_window,
+        repeats,
+        unparsable,
+        unparsable_first,
+        latency,
+        received_bytes_mean,
+    ) = rx_summary;
     let result_without_daemon = PointResult {
         spec: *spec,
         circle_speed_mps: circle.speed_mps,
@@ -994,6 +1034,7 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
         delivered,
         repeats,
         unparsable,
+        unparsable_first,
         vessels_delivered: per_vessel_delivered.iter().filter(|&&d| d > 0).count(),
         vessels_heard: heard,
         vessels_heard_at_start,
@@ -1084,7 +1125,30 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
 
 #[cfg(test)]
 mod tests {
-    use super::{CAUGHT_UP_LAG_MS, caught_up};
+    use super::{CAUGHT_UP_LAG_MS, Path, Receiver, Window, caught_up};
+    use std::sync::Arc;
+    use std::time::Instant;
+
+    /// Every unattributable message is counted; the first is kept, with
+    /// why, its key and the start of its payload, for the report.
+    #[test]
+    fn the_first_unattributable_message_is_kept_for_the_report() {
+        let rx = Receiver::new(
+            Path::Daemon,
+            2,
+            Instant::now(),
+            0.0,
+            Arc::new(Window::new()),
+        );
+        let mut st = rx.lock();
+        st.count_unparsable("no time in the payload", "asv/v0/twin/fault", br#"{"x":1}"#);
+        st.count_unparsable("vessel index out of range", "asv/v9/twin/fault", b"{}");
+        assert_eq!(st.unparsable, 2);
+        assert_eq!(
+            st.unparsable_first.as_deref(),
+            Some(r#"no time in the payload: asv/v0/twin/fault (7 B) {"x":1}"#)
+        );
+    }
 
     #[test]
     fn a_paced_warm_up_waits_for_the_schedule_and_prompt_deliveries() {
