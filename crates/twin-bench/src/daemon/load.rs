@@ -522,7 +522,7 @@ impl Receiver {
             let why = if index.is_none() {
                 "no vessel index in the key"
             } else {
-                "no time in the payload"
+                "no readable time in the payload"
             };
             st.count_unparsable(why, key, &bytes);
             return;
@@ -1141,12 +1141,16 @@ mod tests {
             Arc::new(Window::new()),
         );
         let mut st = rx.lock();
-        st.count_unparsable("no time in the payload", "asv/v0/twin/fault", br#"{"x":1}"#);
+        st.count_unparsable(
+            "no readable time in the payload",
+            "asv/v0/twin/fault",
+            br#"{"x":1}"#,
+        );
         st.count_unparsable("vessel index out of range", "asv/v9/twin/fault", b"{}");
         assert_eq!(st.unparsable, 2);
         assert_eq!(
             st.unparsable_first.as_deref(),
-            Some(r#"no time in the payload: asv/v0/twin/fault (7 B) {"x":1}"#)
+            Some(r#"no readable time in the payload: asv/v0/twin/fault (7 B) {"x":1}"#)
         );
     }
 
