@@ -735,14 +735,13 @@ impl DaemonReport {
         let _ = writeln!(
             s,
             "Scaling at {hz} Hz per vessel, and the sustained-rate search (\"search\": {} s windows). \
-             Sustained: >= {:.0} % of the planned fixes sent, the generator never more than \
-             {SUSTAINED_GENERATOR_LAG_MS} ms behind its schedule in the window, >= {:.0} % of the fixes sent \
+             Sustained: >= {pct:.0} % of the planned fixes sent, the generator never more than \
+             {SUSTAINED_GENERATOR_LAG_MS} ms behind its schedule in the window, >= {pct:.0} % of the fixes sent \
              delivered within {} s after the window, and p99 <= {SUSTAINED_P99_MS} ms. CPU: the whole process, % of one core. RSS: the \
              point's own process.",
             o.ramp_window_s,
-            SUSTAINED_DELIVERED * 100.0,
-            SUSTAINED_DELIVERED * 100.0,
-            o.grace_s
+            o.grace_s,
+            pct = SUSTAINED_DELIVERED * 100.0,
         );
         let _ = writeln!(s);
         let _ = writeln!(

@@ -78,11 +78,6 @@ impl LatestStates {
         }
     }
 
-    /// Sets the latest state of `vessel`.
-    pub fn set(&self, vessel: &str, json: &[u8]) {
-        self.slot(vessel).set(json);
-    }
-
     /// Every vessel's latest state, sorted by vessel; vessels without a
     /// state yet are left out.
     pub fn snapshot(&self) -> Vec<(String, Vec<u8>)> {
@@ -399,7 +394,7 @@ mod tests {
         let b = latest.slot("b");
         let _never_written = latest.slot("c");
         b.set(b"old");
-        latest.set("a", b"first");
+        latest.slot("a").set(b"first");
         b.set(b"new");
         // A second slot for a vessel is the same slot.
         latest.slot("a").set(b"second");

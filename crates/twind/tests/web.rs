@@ -151,7 +151,7 @@ fn send(tap: &broadcast::Sender<OutputEvent>, vessel: &str, topic: Topic, json: 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn events_come_in_order_after_a_snapshot_of_the_latest_states() {
     let latest = LatestStates::default();
-    latest.set("early", state_json("early", 7).as_bytes());
+    latest.slot("early").set(state_json("early", 7).as_bytes());
     let s = serve(latest).await;
     let addr = s.addr;
     let mut ev = tokio::task::spawn_blocking(move || Events::open(addr))
@@ -245,7 +245,9 @@ async fn events_come_in_order_after_a_snapshot_of_the_latest_states() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn serves_the_embedded_page_and_the_api() {
     let latest = LatestStates::default();
-    latest.set("otter-2", state_json("otter-2", 1).as_bytes());
+    latest
+        .slot("otter-2")
+        .set(state_json("otter-2", 1).as_bytes());
     let s = serve(latest).await;
     let addr = s.addr;
     // A state through the tap fills the history.
