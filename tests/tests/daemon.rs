@@ -326,10 +326,11 @@ async fn three_vessels_at_once_do_not_talk_across() {
     }
 }
 
-/// The dispatcher tells the forecast threads whether it keeps up: once a
-/// trial has been routed and the daemon waits for input, the fault path
-/// does not count as saturated, however long it waits (else every forecast
-/// of a quiet daemon would be held back).
+/// The forecast threads learn whether the fault path keeps up from the
+/// count of events routed and not yet handled: once a trial has been
+/// handled and the daemon waits for input, the fault path does not count as
+/// saturated, however long it waits (else every forecast of a quiet daemon
+/// would be held back).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_daemon_waiting_for_input_does_not_count_as_saturated() {
     let msgs = messages(&scenario("s-manoeuvre_new-new", 0.0, 41));

@@ -842,7 +842,7 @@ impl DaemonReport {
                  (the live diagnose, seconds of CPU per vessel every few minutes on a blocking thread, \
                  is off for this benchmark). Predictions at their defaults: a {} s forecast at {} s steps \
                  every {} s of message time per vessel, computed on {} forecast thread(s) under `SCHED_IDLE` \
-                 (CPU time nothing else wants) that wait while the dispatcher cannot keep up (at most 1 s \
+                 (CPU time nothing else wants) that wait while the vessel tasks have not caught up (at most 1 s \
                  per forecast), at most one in flight per vessel (on a busy machine they \
                  come less often: the forecasts/s column); \
                  state and fault on every fix; vessel queue depth {}; publishers `CongestionControl::Block`.",

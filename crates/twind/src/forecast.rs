@@ -28,8 +28,8 @@
 //! and down to 2.6 ms with them off. An idle-policy thread still takes a CPU
 //! in the gaps between the busy threads' wake-ups, and the busy threads
 //! then ran slower. So the threads also wait while the fault path is
-//! saturated ([`FaultPathLoad`]: the dispatcher has been routing without
-//! finding its queue empty for [`SATURATED_AFTER`]), each job at most
+//! saturated ([`FaultPathLoad`]: events routed to the vessel tasks have
+//! not all been handled for [`SATURATED_AFTER`]), each job at most
 //! [`MAX_YIELD`], so that forecasts never stop altogether: on a saturated
 //! daemon, one per thread per second (docs/daemon-performance.md).
 
@@ -51,8 +51,8 @@ pub fn computed_total() -> u64 {
     COMPUTED.load(Ordering::Relaxed)
 }
 
-/// The fault path counts as saturated when the dispatcher has not found
-/// its queue empty for this long.
+/// The fault path counts as saturated when events routed to the vessel
+/// tasks have not all been handled for this long.
 pub const SATURATED_AFTER: Duration = Duration::from_millis(20);
 
 /// The longest a forecast thread waits, per job, for the fault path to
@@ -63,10 +63,11 @@ pub const MAX_YIELD: Duration = Duration::from_secs(1);
 const YIELD_POLL: Duration = Duration::from_millis(2);
 
 /// Whether the fault path keeps up, as the forecast threads see it. The
-/// dispatcher says when it finds its input queue empty and waits (it has
-/// caught up) and when it starts routing again; it is saturated once it
-/// has been routing without a break for [`SATURATED_AFTER`]. Cloning
-/// shares it.
+/// dispatcher counts every event it routes to a vessel's queue, and the
+/// vessel's task counts it again once handled; the fault path is saturated
+/// once some event has been waiting or in hand without a break for
+/// [`SATURATED_AFTER`] (on a daemon that keeps up, the count falls to zero
+/// between fixes). Cloning shares it.
 #[derive(Clone, Debug)]
 pub struct FaultPathLoad {
     inner: Arc<LoadInner>,
@@ -75,13 +76,11 @@ pub struct FaultPathLoad {
 #[derive(Debug)]
 struct LoadInner {
     epoch: Instant,
-    /// Since when the dispatcher has been routing without finding its
-    /// queue empty, us after `epoch`; [`WAITING`] while it waits.
+    /// Events routed to vessel tasks and not yet handled.
+    in_flight: AtomicU64,
+    /// When `in_flight` last rose from zero, us after `epoch`.
     busy_since_us: AtomicU64,
 }
-
-/// `busy_since_us` while the dispatcher waits for input.
-const WAITING: u64 = u64::MAX;
 
 impl Default for FaultPathLoad {
     fn default() -> Self {
@@ -90,45 +89,59 @@ impl Default for FaultPathLoad {
 }
 
 impl FaultPathLoad {
-    /// A gauge whose dispatcher waits for input.
+    /// A gauge with nothing in flight.
     pub fn new() -> Self {
         Self {
             inner: Arc::new(LoadInner {
                 epoch: Instant::now(),
-                busy_since_us: AtomicU64::new(WAITING),
+                in_flight: AtomicU64::new(0),
+                busy_since_us: AtomicU64::new(0),
             }),
         }
     }
 
     fn now_us(&self) -> u64 {
         // Saturates after 584,000 years.
-        u64::try_from(self.inner.epoch.elapsed().as_micros()).unwrap_or(WAITING - 1)
+        u64::try_from(self.inner.epoch.elapsed().as_micros()).unwrap_or(u64::MAX)
     }
 
-    /// The dispatcher found its queue empty and waits: it keeps up.
-    pub fn note_waiting(&self) {
-        self.inner.busy_since_us.store(WAITING, Ordering::Relaxed);
+    /// An event was routed to a vessel's queue: the fault path is busy from
+    /// now on if it was not already.
+    pub fn routed(&self) {
+        if self.inner.in_flight.fetch_add(1, Ordering::Relaxed) == 0 {
+            // Between the count and this store a reader sees the previous
+            // busy spell's start, and may wait one poll for nothing.
+            self.inner
+                .busy_since_us
+                .store(self.now_us(), Ordering::Relaxed);
+        }
     }
 
-    /// The dispatcher has input again after waiting.
-    pub fn note_routing(&self) {
-        self.inner
-            .busy_since_us
-            .store(self.now_us(), Ordering::Relaxed);
+    /// A vessel task has handled an event routed to it (or a routed event
+    /// was not taken): when none is left, the fault path has caught up.
+    pub fn handled(&self) {
+        let _ = self
+            .inner
+            .in_flight
+            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |n| n.checked_sub(1));
     }
 
-    /// Whether the dispatcher has been routing without a break for longer
-    /// than [`SATURATED_AFTER`].
+    /// Events routed and not yet handled.
+    pub fn in_flight(&self) -> u64 {
+        self.inner.in_flight.load(Ordering::Relaxed)
+    }
+
+    /// Whether events have been in flight without a break for longer than
+    /// [`SATURATED_AFTER`].
     pub fn saturated(&self) -> bool {
         self.saturated_at(self.now_us())
     }
 
     /// [`Self::saturated`] at `now_us` (us after the gauge's epoch).
     fn saturated_at(&self, now_us: u64) -> bool {
-        match self.inner.busy_since_us.load(Ordering::Relaxed) {
-            WAITING => false,
-            since_us => now_us.saturating_sub(since_us) > SATURATED_AFTER.as_micros() as u64,
-        }
+        self.in_flight() > 0
+            && now_us.saturating_sub(self.inner.busy_since_us.load(Ordering::Relaxed))
+                > SATURATED_AFTER.as_micros() as u64
     }
 
     /// Waits (sleeping) while the fault path is saturated, at most
@@ -306,9 +319,9 @@ mod tests {
         drop(forecaster);
     }
 
-    /// The gauge says "saturated" only once the dispatcher has routed
-    /// without finding its queue empty for longer than [`SATURATED_AFTER`],
-    /// and never while it waits.
+    /// The gauge says "saturated" only once events have been in flight
+    /// without a break for longer than [`SATURATED_AFTER`], and never while
+    /// none is.
     #[test]
     fn the_fault_path_is_saturated_only_after_routing_without_a_break() {
         let limit_us = SATURATED_AFTER.as_micros() as u64;
@@ -317,8 +330,11 @@ mod tests {
             !load.saturated_at(10 * limit_us),
             "waiting is never saturated"
         );
-        load.note_routing();
+        load.routed();
         let since_us = load.inner.busy_since_us.load(Ordering::Relaxed);
+        // A second event in flight does not restart the spell.
+        load.routed();
+        assert_eq!(load.inner.busy_since_us.load(Ordering::Relaxed), since_us);
         assert!(
             !load.saturated_at(since_us + limit_us / 2),
             "routing for a moment"
@@ -330,9 +346,16 @@ mod tests {
         // And on the clock: after a real wait of twice the limit.
         std::thread::sleep(SATURATED_AFTER * 2);
         assert!(load.saturated());
-        load.clone().note_waiting();
+        load.handled();
+        assert!(load.saturated(), "one event still in hand");
+        load.clone().handled();
         assert!(!load.saturated(), "caught up (seen through a clone)");
         assert!(!load.saturated_at(since_us + 10 * limit_us));
+        // More handled than routed (not reached) leaves the count at zero.
+        load.handled();
+        assert_eq!(load.in_flight(), 0);
+        load.routed();
+        assert_eq!(load.in_flight(), 1);
     }
 
     /// While the fault path is saturated a forecast waits, but at most
@@ -340,7 +363,7 @@ mod tests {
     #[test]
     fn forecasts_wait_while_the_fault_path_is_saturated_but_not_forever() {
         let load = FaultPathLoad::new();
-        load.note_routing();
+        load.routed();
         std::thread::sleep(SATURATED_AFTER * 2);
         let forecaster = Forecaster::start(1, load.clone()).unwrap();
         let (reply, mut answer) = oneshot::channel();

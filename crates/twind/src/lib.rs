@@ -9,19 +9,21 @@
 //! - [`forecast`]: the forecast threads, off the fault path.
 //! - [`persist`]: calibration files saved and restored per vessel.
 //! - [`stats`]: counting and rate-limited logging of rejections.
-//! - [`run`] (here): the dispatcher: one Zenoh subscriber for every input
-//!   topic of the vessels this daemon owns, routing each message, in arrival
-//!   order, to its vessel's task, and saying whether it keeps up (the
-//!   forecast threads yield to it while it does not:
-//!   [`forecast::FaultPathLoad`]); the queryable for the latest states; and
-//!   the graceful shutdown.
+//! - `dispatch`: the dispatcher, in the input subscriber's callback:
+//!   routes each message, in arrival order, to its vessel's task, and counts
+//!   what is in flight (the forecast threads yield while the fault path does
+//!   not keep up: [`forecast::FaultPathLoad`]).
+//! - [`run`] (here): one Zenoh subscriber for every input topic of the
+//!   vessels this daemon owns, with the dispatcher as its callback; the
+//!   queryable for the latest states; the graceful shutdown.
 //!
 //! # Shutdown
-//! Decide, tell, wait (tokio's guide): the caller cancels the token; the
-//! dispatcher routes what Zenoh has already delivered and stops reading;
-//! every vessel task drains its queue, publishes a last state and saves its
-//! calibration; `run` waits for all of them and returns. The caller closes
-//! the Zenoh session last. Nothing received is lost.
+//! Decide, tell, wait (tokio's guide): the caller cancels the token; `run`
+//! undeclares the input subscriber (every message Zenoh delivered has been
+//! routed by then) and closes the dispatcher, which closes every vessel's
+//! queue; every vessel task drains its queue, publishes a last state and
+//! saves its calibration; `run` waits for all of them and returns. The
+//! caller closes the Zenoh session last. Nothing received is lost.
 //!
 //! # Invariants
 //! The daemon never crashes on input from the network: every payload is
@@ -31,6 +33,7 @@
 //! plain names are refused and counted by the daemon.
 
 pub mod demo;
+mod dispatch;
 pub mod forecast;
 pub mod persist;
 pub mod settings;
@@ -45,12 +48,10 @@ use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
 use twin_wire::Topic;
 use zenoh::Session;
-use zenoh::handlers::FifoChannel;
 use zenoh::key_expr::KeyExpr;
 
 use crate::settings::Settings;
 use crate::stats::Counters;
-use crate::vessel::{VesselEvent, VesselTask};
 
 /// The latest state payload of every vessel, for the queryable and the web
 /// page. Each vessel writes its own slot, registered once, so the fixes of
@@ -140,20 +141,6 @@ pub fn input_key_expr(settings: &Settings) -> String {
     format!("{}/{}/*", settings.keys.prefix(), settings.vessels.own)
 }
 
-/// A vessel task has ended: its counters go into the summary, and its queue
-/// leaves the map unless a new task for the vessel has replaced it.
-fn forget_ended(
-    vessels: &mut HashMap<String, mpsc::Sender<VesselEvent>>,
-    summary: &mut RunSummary,
-    vessel: String,
-    counters: Counters,
-) {
-    if vessels.get(&vessel).is_some_and(|tx| tx.is_closed()) {
-        vessels.remove(&vessel);
-    }
-    summary.vessels.insert(vessel, counters);
-}
-
 /// Runs the daemon on an open Zenoh `session` until `shutdown` is cancelled.
 pub async fn run(
     settings: Settings,
@@ -176,8 +163,9 @@ pub async fn run_with_tap(
     run_observed(settings, session, shutdown, tap, latest, load).await
 }
 
-/// [`run_with_tap`], with the dispatcher reporting whether it keeps up to
-/// `load` (which the forecast threads yield to, and the caller can read).
+/// [`run_with_tap`], with the vessel tasks reporting whether the fault path
+/// keeps up to `load` (which the forecast threads yield to, and the caller
+/// can read).
 pub async fn run_observed(
     settings: Settings,
     session: Session,
@@ -187,11 +175,6 @@ pub async fn run_observed(
     load: crate::forecast::FaultPathLoad,
 ) -> anyhow::Result<RunSummary> {
     let settings = Arc::new(settings);
-    let subscriber = session
-        .declare_subscriber(input_key_expr(&settings))
-        .with(FifoChannel::new(4096))
-        .await
-        .map_err(|e| anyhow::anyhow!("cannot subscribe to {}: {e}", input_key_expr(&settings)))?;
     let state_key = format!(
         "{}/{}/twin/state",
         settings.keys.prefix(),
@@ -201,19 +184,43 @@ pub async fn run_observed(
         .declare_queryable(&state_key)
         .await
         .map_err(|e| anyhow::anyhow!("cannot declare the queryable {state_key}: {e}"))?;
-    tracing::info!(inputs = %input_key_expr(&settings), "twind running");
 
     let forecaster =
         crate::forecast::Forecaster::start(settings.publish.forecast_threads, load.clone())
             .map_err(|e| anyhow::anyhow!("cannot start the forecast threads: {e}"))?;
     let tracker = TaskTracker::new();
     let (done_tx, mut done_rx) = mpsc::unbounded_channel::<(String, Counters)>();
-    let mut vessels: HashMap<String, mpsc::Sender<VesselEvent>> = HashMap::new();
-    let mut summary = RunSummary::default();
     // Diagnoses are CPU-heavy (seconds each): this bounds how many run at once.
     let diagnose_slots = Arc::new(tokio::sync::Semaphore::new(
         settings.diagnose.max_concurrent,
     ));
+    let dispatcher = crate::dispatch::Dispatcher::new(
+        settings.clone(),
+        crate::dispatch::VesselSpawner {
+            runtime: tokio::runtime::Handle::current(),
+            tracker: tracker.clone(),
+            shared: crate::vessel::VesselShared {
+                session: session.clone(),
+                latest: latest.clone(),
+                tap,
+                diagnose_slots,
+                forecaster,
+                load,
+            },
+            done_tx,
+        },
+    );
+    let subscriber = {
+        let dispatcher = dispatcher.clone();
+        session
+            .declare_subscriber(input_key_expr(&settings))
+            .callback(move |sample| dispatcher.on_sample(&sample))
+            .await
+            .map_err(|e| {
+                anyhow::anyhow!("cannot subscribe to {}: {e}", input_key_expr(&settings))
+            })?
+    };
+    tracing::info!(inputs = %input_key_expr(&settings), "twind running");
 
     // The queryable answers from the shared map; it needs no vessel task.
     let answer_latest = {
@@ -245,133 +252,29 @@ pub async fn run_observed(
         })
     };
 
-    let mut draining = false;
-    load.note_routing();
     loop {
-        // A sample already waiting is taken without a wait; only when the
-        // queue is empty has the dispatcher caught up (the forecast threads
-        // yield to it until then) and does it wait for what comes first.
-        let sample = match subscriber.try_recv() {
-            Ok(Some(s)) => {
-                if !draining && shutdown.is_cancelled() {
-                    draining = true;
+        tokio::select! {
+            _ = shutdown.cancelled() => break,
+            Some(done) = done_rx.recv() => {
+                let mut ended = vec![done];
+                while let Ok(done) = done_rx.try_recv() {
+                    ended.push(done);
                 }
-                while let Ok((vessel, counters)) = done_rx.try_recv() {
-                    forget_ended(&mut vessels, &mut summary, vessel, counters);
-                }
-                s
+                dispatcher.forget_ended(ended);
             }
-            // Shutting down: what Zenoh already delivered is routed; stop.
-            Ok(None) if draining => break,
-            Ok(None) => {
-                load.note_waiting();
-                tokio::select! {
-                    _ = shutdown.cancelled() => {
-                        draining = true;
-                        continue;
-                    }
-                    Some((vessel, counters)) = done_rx.recv() => {
-                        forget_ended(&mut vessels, &mut summary, vessel, counters);
-                        continue;
-                    }
-                    s = subscriber.recv_async() => match s {
-                        Ok(s) => {
-                            load.note_routing();
-                            s
-                        }
-                        Err(_) => break,
-                    },
-                }
-            }
-            Err(_) => break,
-        };
-        let key = sample.key_expr().as_str();
-        let (vessel, topic) = match settings.keys.parse_borrowed(key) {
-            Ok(parsed) => parsed,
-            Err(e) => {
-                summary
-                    .refused
-                    .reject("-", "bad_key", &format!("{key}: {e}"));
-                continue;
-            }
-        };
-        if !matches!(topic, Topic::Gnss | Topic::Nmea | Topic::Actuators) {
-            summary
-                .refused
-                .reject(vessel, "not_an_input_topic", &key.to_string());
-            continue;
-        }
-        let len = sample.payload().len();
-        let event = if len > settings.max_payload_bytes {
-            VesselEvent::Refused {
-                reason: "payload_too_large",
-                detail: format!("{len} bytes on {key}, limit {}", settings.max_payload_bytes),
-            }
-        } else {
-            // A copy: a payload handed on as Zenoh's own buffer would keep
-            // the receive buffer it lies in from being recycled while it
-            // waits in a vessel's queue, and with enough of them queued the
-            // session stops reading (seen as a stalled test with several
-            // daemons in one process).
-            VesselEvent::Payload {
-                topic,
-                bytes: sample.payload().to_bytes().into_owned(),
-            }
-        };
-        // Looked up by the borrowed id: no allocation for a known vessel.
-        let tx = match vessels.get(vessel).filter(|tx| !tx.is_closed()) {
-            Some(tx) => tx.clone(),
-            None => {
-                if vessels.len() >= settings.vessels.max_vessels {
-                    summary.refused.reject(
-                        vessel,
-                        "too_many_vessels",
-                        &settings.vessels.max_vessels,
-                    );
-                    continue;
-                }
-                // Validated by `parse_borrowed`: cannot fail.
-                let Ok(id) = twin_wire::VesselId::new(vessel) else {
-                    continue;
-                };
-                let (tx, rx) = mpsc::channel(settings.vessels.queue_depth);
-                let task = VesselTask::new(
-                    id,
-                    settings.clone(),
-                    session.clone(),
-                    latest.clone(),
-                    tap.clone(),
-                    diagnose_slots.clone(),
-                    forecaster.clone(),
-                );
-                let done = done_tx.clone();
-                let name = vessel.to_string();
-                tracker.spawn(async move {
-                    let counters = task.run(rx).await;
-                    let _ = done.send((name, counters));
-                });
-                vessels.insert(vessel.to_string(), tx.clone());
-                tx
-            }
-        };
-        summary.routed += 1;
-        // Waits while the vessel's queue is full: back-pressure, not loss.
-        if tx.send(event).await.is_err() {
-            summary.refused.reject(
-                vessel,
-                "vessel_task_ended",
-                &"the task ended before the message",
-            );
         }
     }
 
-    // Stop reading first, then let every vessel finish.
-    drop(subscriber);
-    drop(vessels);
+    // Stop reading first (every sample Zenoh delivered has been routed by
+    // the callback), then close the vessels' queues and let every vessel
+    // finish.
+    if let Err(e) = subscriber.undeclare().await {
+        tracing::warn!("the input subscriber was not undeclared: {e}");
+    }
+    let mut summary = dispatcher.close();
     tracker.close();
     tracker.wait().await;
-    drop(done_tx);
-    while let Some((vessel, counters)) = done_rx.recv().await {
+    while let Ok((vessel, counters)) = done_rx.try_recv() {
         summary.vessels.insert(vessel, counters);
     }
     answer_latest.abort();
@@ -382,6 +285,27 @@ pub async fn run_observed(
         "twind stopped"
     );
     Ok(summary)
+}
+
+/// Helpers shared by the unit tests.
+#[cfg(test)]
+pub(crate) mod test_support {
+    use zenoh::Session;
+
+    /// A session of its own: no links, no scouting.
+    pub async fn lone_session() -> Session {
+        let mut c = zenoh::Config::default();
+        for (key, value) in [
+            ("mode", "\"peer\""),
+            ("listen/endpoints", "[]"),
+            ("connect/endpoints", "[]"),
+            ("scouting/multicast/enabled", "false"),
+            ("scouting/gossip/enabled", "false"),
+        ] {
+            c.insert_json5(key, value).unwrap();
+        }
+        zenoh::open(c).await.unwrap()
+    }
 }
 
 #[cfg(test)]

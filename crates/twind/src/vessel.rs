@@ -48,7 +48,7 @@ use zenoh::key_expr::KeyExpr;
 use zenoh::qos::CongestionControl;
 use zenoh::{Session, Wait};
 
-use crate::forecast::{ForecastJob, Forecaster};
+use crate::forecast::{FaultPathLoad, ForecastJob, Forecaster};
 use crate::persist;
 use crate::settings::Settings;
 use crate::stats::Counters;
@@ -81,14 +81,14 @@ pub enum VesselEvent {
 /// visits every node under `{prefix}/`: each vessel's liveliness token is
 /// such a node, so with N tokens every message cost O(N) and the fleet
 /// O(N^2) (421 vessels sustained). A declared key expression is a node
-/// whose route is cached, so the daemon's routing of the vessel's inputs
-/// and of its own outputs no longer walks the tree (`twin-bench daemon`
-/// measured it; docs/daemon-performance.md). Unlike a publisher or a token
+/// whose route is cached, so the daemon's routing of its own outputs no
+/// longer walks the tree (`twin-bench daemon` measured it;
+/// docs/daemon-performance.md). (The vessel's input keys are declared by
+/// the dispatcher: `dispatch::VesselRoute`.) Unlike a publisher or a token
 /// a declared key expression is not announced when declared, though Zenoh
 /// may declare it to a peer it routes the key to (which then makes a node
 /// too). Declaring costs a walk, so a key is declared only once it is
-/// used (a vessel sending fixes over NMEA never has its `gnss` key
-/// declared).
+/// used (a vessel without alarms never has its `alarm` key declared).
 /// Not a declared Zenoh publisher: six of those per vessel made the whole
 /// fleet slower as it grew.
 struct VesselKey {
@@ -124,8 +124,7 @@ impl std::fmt::Display for VesselKey {
     }
 }
 
-/// The vessel's keys: its outputs, and its inputs (declared only so that
-/// their routing in the daemon's session is cached; see [`VesselKey`]).
+/// The vessel's output keys, each declared at its first use.
 struct VesselKeys {
     state: VesselKey,
     fault: VesselKey,
@@ -133,9 +132,6 @@ struct VesselKeys {
     alarm: VesselKey,
     stats: VesselKey,
     finding: VesselKey,
-    gnss: VesselKey,
-    nmea: VesselKey,
-    actuators: VesselKey,
 }
 
 impl VesselKeys {
@@ -147,20 +143,7 @@ impl VesselKeys {
             alarm: VesselKey::new(keys.twin_alarm(id))?,
             stats: VesselKey::new(keys.twin_stats(id))?,
             finding: VesselKey::new(keys.key(id, Topic::TwinFinding))?,
-            gnss: VesselKey::new(keys.gnss(id))?,
-            nmea: VesselKey::new(keys.nmea(id))?,
-            actuators: VesselKey::new(keys.actuators(id))?,
         })
-    }
-
-    /// The input key of `topic`, if it is one.
-    fn input(&self, topic: Topic) -> Option<&VesselKey> {
-        match topic {
-            Topic::Gnss => Some(&self.gnss),
-            Topic::Nmea => Some(&self.nmea),
-            Topic::Actuators => Some(&self.actuators),
-            _ => None,
-        }
     }
 }
 
@@ -190,6 +173,8 @@ pub struct VesselTask {
     diagnosis: Option<oneshot::Receiver<Option<FindingsMessage>>>,
     published_causes: Option<Vec<String>>,
     forecaster: Forecaster,
+    /// Told when an event routed to this task has been handled.
+    load: FaultPathLoad,
     /// The forecast being computed on the forecast threads, if any.
     forecast: Option<oneshot::Receiver<Option<Vec<u8>>>>,
     /// A forecast fell due while one was being computed: ask again when it
@@ -258,17 +243,34 @@ fn diagnose_events(
     })
 }
 
+/// What every vessel task of a daemon shares.
+#[derive(Clone)]
+pub struct VesselShared {
+    /// The daemon's session.
+    pub session: Session,
+    /// The latest states, shared with the queryable and the web page.
+    pub latest: LatestStates,
+    /// Where outputs are copied for in-process listeners.
+    pub tap: OutputTap,
+    /// Bounds how many diagnoses run at once.
+    pub diagnose_slots: Arc<Semaphore>,
+    /// The forecast threads.
+    pub forecaster: Forecaster,
+    /// Counts the events routed and not yet handled.
+    pub load: FaultPathLoad,
+}
+
 impl VesselTask {
     /// A task for vessel `id`, with its calibration restored if one is saved.
-    pub fn new(
-        id: VesselId,
-        settings: Arc<Settings>,
-        session: Session,
-        latest: LatestStates,
-        tap: OutputTap,
-        diagnose_slots: Arc<Semaphore>,
-        forecaster: Forecaster,
-    ) -> Self {
+    pub fn new(id: VesselId, settings: Arc<Settings>, shared: &VesselShared) -> Self {
+        let VesselShared {
+            session,
+            latest,
+            tap,
+            diagnose_slots,
+            forecaster,
+            load,
+        } = shared.clone();
         let mut twin =
             VesselTwin::new(settings.twin).expect("the settings' twin configuration was validated");
         if let Some(dir) = &settings.persistence.dir {
@@ -312,6 +314,7 @@ impl VesselTask {
             diagnosis: None,
             published_causes: None,
             forecaster,
+            load,
             forecast: None,
             forecast_wanted: false,
             rearm_timer: false,
@@ -380,6 +383,7 @@ impl VesselTask {
                     Some(ev) => {
                         self.last_event_wall = Instant::now();
                         self.handle(ev, &vessel_keys).await;
+                        self.load.handled();
                         // A fix after a stale state, or the first unsaved
                         // one, brings a deadline nearer than the armed one.
                         if std::mem::take(&mut self.rearm_timer) {
@@ -406,6 +410,14 @@ impl VesselTask {
                     timer.as_mut().reset(self.next_wake(&timers).into());
                 }
             }
+        }
+        // Fallen silent (or shut down, when this finds nothing): no more
+        // events come in, and any routed in the meantime are handled, not
+        // lost (the dispatcher counts each in flight until it is).
+        rx.close();
+        while let Some(ev) = rx.recv().await {
+            self.handle(ev, &vessel_keys).await;
+            self.load.handled();
         }
         // A forecast still being computed is published, and one that fell
         // due meanwhile is made: what the twin computed is not lost (a
@@ -478,9 +490,6 @@ impl VesselTask {
     }
 
     async fn handle_payload(&mut self, topic: Topic, bytes: &[u8], p: &VesselKeys) {
-        if let Some(input) = p.input(topic) {
-            input.declared(&self.session);
-        }
         match topic {
             Topic::Gnss => match decode_gnss_limited(bytes, self.settings.max_payload_bytes) {
                 Ok(d) => {
@@ -819,21 +828,7 @@ pub(crate) fn encode_json<T: serde::Serialize + ?Sized>(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A session of its own: no links, no scouting.
-    async fn lone_session() -> Session {
-        let mut c = zenoh::Config::default();
-        for (key, value) in [
-            ("mode", "\"peer\""),
-            ("listen/endpoints", "[]"),
-            ("connect/endpoints", "[]"),
-            ("scouting/multicast/enabled", "false"),
-            ("scouting/gossip/enabled", "false"),
-        ] {
-            c.insert_json5(key, value).unwrap();
-        }
-        zenoh::open(c).await.unwrap()
-    }
+    use crate::test_support::lone_session;
 
     #[tokio::test(flavor = "multi_thread", worker_threads = 1)]
     async fn a_vessel_key_is_declared_on_its_first_use() {
