@@ -6,8 +6,8 @@
 //! the vessels. (Until the twelfth session it was a task on the runtime's
 //! workers reading a Zenoh FIFO channel; that serial loop competed with the
 //! vessel tasks it fed, and at 1,000 vessels flat out the daemon carried
-//! about 68,000 fixes/s that way against about 88,000 this way:
-//! docs/daemon-performance.md, section 5.)
+//! about 70,000 fixes/s that way against about 125,000 this way, side by
+//! side: docs/daemon-performance.md, section 5.)
 //!
 //! Rules it keeps:
 //! - a message whose vessel's queue is full waits for room on the Zenoh
@@ -92,6 +92,8 @@ struct Blocked {
     tx: mpsc::Sender<VesselEvent>,
     event: VesselEvent,
     vessel: String,
+    /// Told if the event is not taken after all.
+    load: FaultPathLoad,
 }
 
 /// The dispatcher's state.
@@ -194,6 +196,7 @@ impl Router {
                 tx: route.tx.clone(),
                 event,
                 vessel: vessel.to_string(),
+                load: self.load.clone(),
             }),
             Err(mpsc::error::TrySendError::Closed(_)) => {
                 self.load.handled();
@@ -247,11 +250,17 @@ impl Dispatcher {
     /// on this thread (Zenoh's, which then stops reading: back-pressure
     /// onto the sender, not loss).
     fn on_message(&self, key: &KeyExpr<'_>, payload: &ZBytes) {
-        let (blocked, load) = match self.0.lock() {
-            Ok(mut router) => (router.route(key, payload), router.load.clone()),
+        let blocked = match self.0.lock() {
+            Ok(mut router) => router.route(key, payload),
             Err(_) => return,
         };
-        let Some(Blocked { tx, event, vessel }) = blocked else {
+        let Some(Blocked {
+            tx,
+            event,
+            vessel,
+            load,
+        }) = blocked
+        else {
             return;
         };
         // Unconstrained: this thread belongs to one of Zenoh's runtimes,
@@ -418,6 +427,38 @@ mod tests {
         assert!(route(&dispatcher, "asv/d2/gnss", b"third").is_none());
         assert_eq!(load.in_flight(), 2, "nothing routed once closed");
         idle.shutdown_background();
+        session.close().await.unwrap();
+    }
+
+    /// A message for a full queue waits on the calling thread (Zenoh's);
+    /// if the vessel's task ends instead of taking it, it is counted as
+    /// refused and no longer as in flight.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 1)]
+    async fn a_message_waits_for_a_full_queue_and_is_counted_if_its_task_ends() {
+        let session = lone_session().await;
+        let idle = tokio::runtime::Builder::new_current_thread()
+            .build()
+            .unwrap();
+        let settings = Settings::from_toml("[vessels]\nqueue_depth = 1\n").unwrap();
+        let (dispatcher, load) = dispatcher_with_idle_tasks(settings, &session, &idle);
+        let key = KeyExpr::try_from("asv/d4/nmea").unwrap();
+        dispatcher.on_message(&key, &ZBytes::from(b"first".to_vec()));
+        let waiting = {
+            let dispatcher = dispatcher.clone();
+            let key = key.clone().into_owned();
+            std::thread::spawn(move || {
+                dispatcher.on_message(&key, &ZBytes::from(b"second".to_vec()))
+            })
+        };
+        tokio::time::sleep(std::time::Duration::from_millis(200)).await;
+        assert!(!waiting.is_finished(), "waits while the queue is full");
+        assert_eq!(load.in_flight(), 2);
+        // The task (never run) and its queue go with the runtime.
+        idle.shutdown_background();
+        waiting.join().unwrap();
+        assert_eq!(load.in_flight(), 1, "the second no longer in flight");
+        let summary = dispatcher.close();
+        assert_eq!(summary.refused.rejected.get(TASK_ENDED), Some(&1));
         session.close().await.unwrap();
     }
 
