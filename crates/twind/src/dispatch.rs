@@ -340,33 +340,54 @@ mod tests {
     use super::*;
     use crate::test_support::lone_session;
 
-    /// A dispatcher on `session` whose vessel tasks are spawned on `idle`, a
-    /// runtime nobody drives: they never take an event, so what the queues
-    /// hold is what the dispatcher put there.
-    fn dispatcher_with_idle_tasks(
-        settings: Settings,
-        session: &Session,
-        idle: &tokio::runtime::Runtime,
-    ) -> (Dispatcher, FaultPathLoad) {
-        let load = FaultPathLoad::new();
-        let (done_tx, _) = mpsc::unbounded_channel();
-        let dispatcher = Dispatcher::new(
-            Arc::new(settings),
-            VesselSpawner {
-                runtime: idle.handle().clone(),
-                tracker: TaskTracker::new(),
-                shared: VesselShared {
-                    session: session.clone(),
-                    latest: crate::LatestStates::default(),
-                    tap: None,
-                    diagnose_slots: Arc::new(tokio::sync::Semaphore::new(1)),
-                    forecaster: crate::forecast::Forecaster::start(1, load.clone()).unwrap(),
-                    load: load.clone(),
+    /// A dispatcher on a session of its own whose vessel tasks are spawned
+    /// on `idle`, a runtime nobody drives: they never take an event, so what
+    /// the queues hold is what the dispatcher put there.
+    struct Rig {
+        session: Session,
+        idle: tokio::runtime::Runtime,
+        dispatcher: Dispatcher,
+        load: FaultPathLoad,
+    }
+
+    impl Rig {
+        /// A rig with the settings of `toml`.
+        async fn new(toml: &str) -> Self {
+            let session = lone_session().await;
+            let idle = tokio::runtime::Builder::new_current_thread()
+                .build()
+                .unwrap();
+            let load = FaultPathLoad::new();
+            let (done_tx, _) = mpsc::unbounded_channel();
+            let dispatcher = Dispatcher::new(
+                Arc::new(Settings::from_toml(toml).unwrap()),
+                VesselSpawner {
+                    runtime: idle.handle().clone(),
+                    tracker: TaskTracker::new(),
+                    shared: VesselShared {
+                        session: session.clone(),
+                        latest: crate::LatestStates::default(),
+                        tap: None,
+                        diagnose_slots: Arc::new(tokio::sync::Semaphore::new(1)),
+                        forecaster: crate::forecast::Forecaster::start(1, load.clone()).unwrap(),
+                        load: load.clone(),
+                    },
+                    done_tx,
                 },
-                done_tx,
-            },
-        );
-        (dispatcher, load)
+            );
+            Self {
+                session,
+                idle,
+                dispatcher,
+                load,
+            }
+        }
+
+        /// Drops the never-run tasks and closes the session.
+        async fn finish(self) {
+            self.idle.shutdown_background();
+            self.session.close().await.unwrap();
+        }
     }
 
     /// `route` as the callback calls it, on a key given as text.
@@ -381,42 +402,34 @@ mod tests {
 
     #[tokio::test(flavor = "multi_thread", worker_threads = 1)]
     async fn a_vessels_input_key_is_declared_at_its_first_message() {
-        let session = lone_session().await;
-        let idle = tokio::runtime::Builder::new_current_thread()
-            .build()
-            .unwrap();
-        let (dispatcher, _) = dispatcher_with_idle_tasks(Settings::default(), &session, &idle);
+        let rig = Rig::new("").await;
+        let (session, dispatcher) = (&rig.session, &rig.dispatcher);
         let input = |vessel: &str, slot: usize| {
             dispatcher.0.lock().unwrap().vessels[vessel].inputs[slot].clone()
         };
-        assert!(route(&dispatcher, "asv/d1/gnss", b"{}").is_none());
+        assert!(route(dispatcher, "asv/d1/gnss", b"{}").is_none());
         let gnss = input("d1", 0).expect("declared at the first message");
         assert_eq!(gnss.as_str(), "asv/d1/gnss");
         assert!(input("d1", 2).is_none(), "actuators: not seen yet");
-        route(&dispatcher, "asv/d1/actuators", b"{}");
+        route(dispatcher, "asv/d1/actuators", b"{}");
         assert!(input("d1", 2).is_some());
         // An output topic is refused, not routed.
-        route(&dispatcher, "asv/d1/twin/state", b"{}");
+        route(dispatcher, "asv/d1/twin/state", b"{}");
         // Only a declared key expression can be undeclared: the key held is
         // the session's declaration.
         assert!(session.undeclare(gnss).await.is_ok());
         let summary = dispatcher.close();
         assert_eq!(summary.routed, 2);
         assert_eq!(summary.refused.total_rejected(), 1);
-        idle.shutdown_background();
-        session.close().await.unwrap();
+        rig.finish().await;
     }
 
     #[tokio::test(flavor = "multi_thread", worker_threads = 1)]
     async fn a_full_queue_hands_the_message_back_and_a_closed_dispatcher_routes_nothing() {
-        let session = lone_session().await;
-        let idle = tokio::runtime::Builder::new_current_thread()
-            .build()
-            .unwrap();
-        let settings = Settings::from_toml("[vessels]\nqueue_depth = 1\n").unwrap();
-        let (dispatcher, load) = dispatcher_with_idle_tasks(settings, &session, &idle);
-        assert!(route(&dispatcher, "asv/d2/gnss", b"first").is_none());
-        let blocked = route(&dispatcher, "asv/d2/gnss", b"second").expect("the queue is full");
+        let rig = Rig::new("[vessels]\nqueue_depth = 1\n").await;
+        let (dispatcher, load) = (&rig.dispatcher, &rig.load);
+        assert!(route(dispatcher, "asv/d2/gnss", b"first").is_none());
+        let blocked = route(dispatcher, "asv/d2/gnss", b"second").expect("the queue is full");
         assert_eq!(blocked.vessel, "d2");
         assert!(
             matches!(&blocked.event, VesselEvent::Payload { topic: Topic::Gnss, bytes } if bytes == b"second")
@@ -424,10 +437,9 @@ mod tests {
         assert_eq!(load.in_flight(), 2, "both count until handled");
         let summary = dispatcher.close();
         assert_eq!(summary.routed, 2);
-        assert!(route(&dispatcher, "asv/d2/gnss", b"third").is_none());
+        assert!(route(dispatcher, "asv/d2/gnss", b"third").is_none());
         assert_eq!(load.in_flight(), 2, "nothing routed once closed");
-        idle.shutdown_background();
-        session.close().await.unwrap();
+        rig.finish().await;
     }
 
     /// A message for a full queue waits on the calling thread (Zenoh's);
@@ -435,12 +447,12 @@ mod tests {
     /// refused and no longer as in flight.
     #[tokio::test(flavor = "multi_thread", worker_threads = 1)]
     async fn a_message_waits_for_a_full_queue_and_is_counted_if_its_task_ends() {
-        let session = lone_session().await;
-        let idle = tokio::runtime::Builder::new_current_thread()
-            .build()
-            .unwrap();
-        let settings = Settings::from_toml("[vessels]\nqueue_depth = 1\n").unwrap();
-        let (dispatcher, load) = dispatcher_with_idle_tasks(settings, &session, &idle);
+        let Rig {
+            session,
+            idle,
+            dispatcher,
+            load,
+        } = Rig::new("[vessels]\nqueue_depth = 1\n").await;
         let key = KeyExpr::try_from("asv/d4/nmea").unwrap();
         dispatcher.on_message(&key, &ZBytes::from(b"first".to_vec()));
         let waiting = {
