@@ -31,13 +31,12 @@ use twin_wire::Topic;
 use zenoh::bytes::ZBytes;
 use zenoh::key_expr::KeyExpr;
 use zenoh::sample::Sample;
-use zenoh::{Session, Wait};
 
 use crate::RunSummary;
 use crate::forecast::FaultPathLoad;
 use crate::settings::Settings;
 use crate::stats::Counters;
-use crate::vessel::{VesselEvent, VesselShared, VesselTask};
+use crate::vessel::{VesselEvent, VesselShared, VesselTask, declare_key};
 
 /// The reason counted for a message whose vessel task had already ended.
 const TASK_ENDED: &str = "vessel_task_ended";
@@ -92,8 +91,6 @@ struct Blocked {
     tx: mpsc::Sender<VesselEvent>,
     event: VesselEvent,
     vessel: String,
-    /// Told if the event is not taken after all.
-    load: FaultPathLoad,
 }
 
 /// The dispatcher's state.
@@ -186,7 +183,10 @@ impl Router {
             }
         };
         if route.inputs[slot].is_none() {
-            route.inputs[slot] = Some(declare(&spawner.shared.session, key.clone().into_owned()));
+            route.inputs[slot] = Some(declare_key(
+                &spawner.shared.session,
+                key.clone().into_owned(),
+            ));
         }
         self.summary.routed += 1;
         self.load.routed();
@@ -196,30 +196,21 @@ impl Router {
                 tx: route.tx.clone(),
                 event,
                 vessel: vessel.to_string(),
-                load: self.load.clone(),
             }),
             Err(mpsc::error::TrySendError::Closed(_)) => {
-                self.load.handled();
-                self.summary.refused.reject(
-                    vessel,
-                    TASK_ENDED,
-                    &"the task ended before the message",
-                );
+                self.task_ended(vessel);
                 None
             }
         }
     }
-}
 
-/// `key` declared to `session`; should Zenoh refuse, the undeclared key (it
-/// routes the same, uncached).
-fn declare(session: &Session, key: KeyExpr<'static>) -> KeyExpr<'static> {
-    match session.declare_keyexpr(key.clone()).wait() {
-        Ok(declared) => declared,
-        Err(e) => {
-            tracing::debug!(%key, "key expression not declared: {e}");
-            key
-        }
+    /// A routed message was not taken, its vessel's task having ended: no
+    /// longer in flight, and counted as refused.
+    fn task_ended(&mut self, vessel: &str) {
+        self.load.handled();
+        self.summary
+            .refused
+            .reject(vessel, TASK_ENDED, &"the task ended before the message");
     }
 }
 
@@ -254,27 +245,16 @@ impl Dispatcher {
             Ok(mut router) => router.route(key, payload),
             Err(_) => return,
         };
-        let Some(Blocked {
-            tx,
-            event,
-            vessel,
-            load,
-        }) = blocked
-        else {
+        let Some(Blocked { tx, event, vessel }) = blocked else {
             return;
         };
         // Unconstrained: this thread belongs to one of Zenoh's runtimes,
         // and tokio's per-task budget there would make the send pending
         // again and again without any task yielding in between.
-        if wait_here(tokio::task::unconstrained(tx.send(event))).is_err() {
-            load.handled();
-            if let Ok(mut router) = self.0.lock() {
-                router.summary.refused.reject(
-                    &vessel,
-                    TASK_ENDED,
-                    &"the task ended before the message",
-                );
-            }
+        if wait_here(tokio::task::unconstrained(tx.send(event))).is_err()
+            && let Ok(mut router) = self.0.lock()
+        {
+            router.task_ended(&vessel);
         }
     }
 
@@ -339,6 +319,7 @@ fn wait_here<F: std::future::Future>(future: F) -> F::Output {
 mod tests {
     use super::*;
     use crate::test_support::lone_session;
+    use zenoh::Session;
 
     /// A dispatcher on a session of its own whose vessel tasks are spawned
     /// on `idle`, a runtime nobody drives: they never take an event, so what

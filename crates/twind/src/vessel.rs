@@ -108,13 +108,19 @@ impl VesselKey {
     /// refuse, the undeclared key (it routes the same, uncached).
     fn declared(&self, session: &Session) -> &KeyExpr<'static> {
         self.declared
-            .get_or_init(|| match session.declare_keyexpr(self.key.clone()).wait() {
-                Ok(declared) => declared,
-                Err(e) => {
-                    tracing::debug!(key = %self.key, "key expression not declared: {e}");
-                    self.key.clone()
-                }
-            })
+            .get_or_init(|| declare_key(session, self.key.clone()))
+    }
+}
+
+/// `key` declared to `session` (see [`VesselKey`]); should Zenoh refuse,
+/// the undeclared key (it routes the same, uncached).
+pub(crate) fn declare_key(session: &Session, key: KeyExpr<'static>) -> KeyExpr<'static> {
+    match session.declare_keyexpr(key.clone()).wait() {
+        Ok(declared) => declared,
+        Err(e) => {
+            tracing::debug!(%key, "key expression not declared: {e}");
+            key
+        }
     }
 }
 
