@@ -127,26 +127,6 @@ impl Router {
                 .reject(vessel, "not_an_input_topic", &key_str.to_string());
             return None;
         };
-        let len = payload.len();
-        let event = if len > settings.max_payload_bytes {
-            VesselEvent::Refused {
-                reason: "payload_too_large",
-                detail: format!(
-                    "{len} bytes on {key_str}, limit {}",
-                    settings.max_payload_bytes
-                ),
-            }
-        } else {
-            // A copy: a payload handed on as Zenoh's own buffer would keep
-            // the receive buffer it lies in from being recycled while it
-            // waits in a vessel's queue, and with enough of them queued the
-            // session stops reading (seen as a stalled test with several
-            // daemons in one process).
-            VesselEvent::Payload {
-                topic,
-                bytes: payload.to_bytes().into_owned(),
-            }
-        };
         // Looked up by the borrowed id: no allocation for a known vessel.
         let route = match self.vessels.get_mut(vessel).filter(|r| !r.tx.is_closed()) {
             Some(route) => route,
@@ -180,6 +160,28 @@ impl Router {
                     .entry(vessel.to_string())
                     .insert_entry(route)
                     .into_mut()
+            }
+        };
+        let len = payload.len();
+        // Built once the message has a vessel to go to: a message refused
+        // above costs no copy.
+        let event = if len > settings.max_payload_bytes {
+            VesselEvent::Refused {
+                reason: "payload_too_large",
+                detail: format!(
+                    "{len} bytes on {key_str}, limit {}",
+                    settings.max_payload_bytes
+                ),
+            }
+        } else {
+            // A copy: a payload handed on as Zenoh's own buffer would keep
+            // the receive buffer it lies in from being recycled while it
+            // waits in a vessel's queue, and with enough of them queued the
+            // session stops reading (seen as a stalled test with several
+            // daemons in one process).
+            VesselEvent::Payload {
+                topic,
+                bytes: payload.to_bytes().into_owned(),
             }
         };
         if route.inputs[slot].is_none() {
