@@ -425,6 +425,25 @@ mod tests {
         rig.finish().await;
     }
 
+    /// A vessel beyond `max_vessels` is refused with a reason, starts no
+    /// task and is not counted in flight; the known vessels are still
+    /// routed.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 1)]
+    async fn a_vessel_beyond_max_vessels_is_refused_and_the_others_still_routed() {
+        let rig = Rig::new("[vessels]\nmax_vessels = 1\n").await;
+        let (dispatcher, load) = (&rig.dispatcher, &rig.load);
+        assert!(route(dispatcher, "asv/d5/gnss", b"{}").is_none());
+        assert!(route(dispatcher, "asv/d6/gnss", b"{}").is_none());
+        assert!(route(dispatcher, "asv/d5/actuators", b"{}").is_none());
+        assert!(!dispatcher.0.lock().unwrap().vessels.contains_key("d6"));
+        assert_eq!(load.in_flight(), 2, "only the routed messages");
+        let summary = dispatcher.close();
+        assert_eq!(summary.routed, 2);
+        assert_eq!(summary.refused.rejected.get("too_many_vessels"), Some(&1));
+        assert_eq!(summary.refused.total_rejected(), 1);
+        rig.finish().await;
+    }
+
     /// A message for a full queue waits on the calling thread (Zenoh's);
     /// if the vessel's task ends instead of taking it, it is counted as
     /// refused and no longer as in flight.
