@@ -42,14 +42,10 @@ async fn rig_observed(settings: Settings, load: FaultPathLoad) -> Rig {
     let input = zenoh::open(config("peer", &[], &[port])).await.unwrap();
     let output = zenoh::open(config("peer", &[], &[port])).await.unwrap();
     let cancel = CancellationToken::new();
-    let handle = tokio::spawn(twind::run_observed(
-        settings,
-        daemon.clone(),
-        cancel.clone(),
-        None,
-        twind::LatestStates::default(),
+    let handle = tokio::spawn(twind::run(twind::RunConfig {
         load,
-    ));
+        ..twind::RunConfig::new(settings, daemon.clone(), cancel.clone())
+    }));
     Rig {
         daemon,
         input,

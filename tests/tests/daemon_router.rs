@@ -45,11 +45,11 @@ async fn the_daemon_reconnects_when_the_router_restarts() {
     let input = zenoh::open(config("client", &[], &[port])).await.unwrap();
     let output = zenoh::open(config("client", &[], &[port])).await.unwrap();
     let cancel = CancellationToken::new();
-    let handle = tokio::spawn(twind::run(
+    let handle = tokio::spawn(twind::run(twind::RunConfig::new(
         Settings::default(),
         daemon.clone(),
         cancel.clone(),
-    ));
+    )));
     let sub = output
         .declare_subscriber("asv/otter-9/twin/**")
         .with(zenoh::handlers::FifoChannel::new(100_000))
@@ -114,16 +114,16 @@ async fn two_daemons_share_a_fleet_by_key_expression() {
     let output = zenoh::open(config("client", &[], &[port])).await.unwrap();
     let owning = |own: &str| Settings::from_toml(&format!("[vessels]\nown = \"{own}\"\n")).unwrap();
     let cancel = CancellationToken::new();
-    let hn = tokio::spawn(twind::run(
+    let hn = tokio::spawn(twind::run(twind::RunConfig::new(
         owning("north-$*"),
         north.clone(),
         cancel.clone(),
-    ));
-    let hs = tokio::spawn(twind::run(
+    )));
+    let hs = tokio::spawn(twind::run(twind::RunConfig::new(
         owning("south-$*"),
         south.clone(),
         cancel.clone(),
-    ));
+    )));
     let sub = output
         .declare_subscriber("asv/*/twin/fault")
         .with(zenoh::handlers::FifoChannel::new(100_000))

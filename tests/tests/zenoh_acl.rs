@@ -152,11 +152,11 @@ async fn only_allowed_identities_reach_the_daemon_and_it_publishes_only_twin_out
     let rogue = open_as(port, "twind").await;
 
     let cancel = CancellationToken::new();
-    let handle = tokio::spawn(twind::run(
+    let handle = tokio::spawn(twind::run(twind::RunConfig::new(
         Settings::default(),
         daemon.clone(),
         cancel.clone(),
-    ));
+    )));
     let watch = operator
         .declare_subscriber("asv/*/twin/**")
         .with(FifoChannel::new(100_000))

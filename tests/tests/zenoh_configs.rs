@@ -9,8 +9,8 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
-use twin_replay::zenoh_cli::{Mode, ZenohArgs};
 use twin_tests::net::free_port;
+use twin_zenoh::{Mode, ZenohArgs};
 use zenoh::Wait;
 
 fn config_dir() -> PathBuf {

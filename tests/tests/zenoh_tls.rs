@@ -184,11 +184,11 @@ async fn a_fix_goes_through_the_daemon_over_tls_and_strangers_stay_out() {
     }
 
     let cancel = CancellationToken::new();
-    let handle = tokio::spawn(twind::run(
+    let handle = tokio::spawn(twind::run(twind::RunConfig::new(
         Settings::default(),
         daemon.clone(),
         cancel.clone(),
-    ));
+    )));
     let states = operator
         .declare_subscriber("asv/*/twin/state")
         .await

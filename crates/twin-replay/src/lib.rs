@@ -3,10 +3,6 @@
 //! trial as if the vessel were on the water.
 //!
 //! # Layout
-//! - [`zenoh_cli`]: the Zenoh flags shared by `twind` and `twin-replay`
-//!   (`--config`, `--mode`, `--connect`, `--listen`,
-//!   `--no-multicast-scouting`) and their translation into a
-//!   [`zenoh::Config`].
 //! - [`replay`]: [`ReplayOptions`], [`replay_log`] (a file) and
 //!   [`replay_reader`] (any `BufRead` factory: bundled or generated data),
 //!   [`run`] (open a session, replay, close it), the [`Progress`] reports and
@@ -26,10 +22,8 @@
 //!   a slow receiver slows the replay down, it never loses messages.
 
 pub mod replay;
-pub mod zenoh_cli;
 
 pub use replay::{
     Progress, Published, Rate, RateError, ReplayError, ReplayOptions, ReplaySummary, Skipped,
     replay_log, replay_reader, run,
 };
-pub use zenoh_cli::{Mode, ZenohArgs, ZenohConfigError};

@@ -11,8 +11,9 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::Parser;
 use tracing_subscriber::EnvFilter;
-use twin_replay::{Rate, ReplayOptions, ZenohArgs};
+use twin_replay::{Rate, ReplayOptions};
 use twin_wire::{AssemblerConfig, KeySpace, VesselId};
+use twin_zenoh::ZenohArgs;
 
 /// Publishes a recorded log (NMEA 0183, canboat NMEA 2000 text or JSON
 /// lines, picked by content) over Zenoh as the twin's input messages, with

@@ -71,13 +71,11 @@ pub async fn run(
 ) -> anyhow::Result<HashMap<String, FaultMessage>> {
     let stop_daemon = CancellationToken::new();
     let keys = settings.keys.clone();
-    let daemon = tokio::spawn(crate::run_with_tap(
-        settings,
-        session.clone(),
-        stop_daemon.clone(),
+    let daemon = tokio::spawn(crate::run(crate::RunConfig {
         tap,
         latest,
-    ));
+        ..crate::RunConfig::new(settings, session.clone(), stop_daemon.clone())
+    }));
 
     // Print the estimates as they converge, once a second per vessel.
     let faults = session

@@ -9,6 +9,8 @@
 //! - [`forecast`]: the forecast threads, off the fault path.
 //! - [`persist`]: calibration files saved and restored per vessel.
 //! - [`stats`]: counting and rate-limited logging of rejections.
+//! - [`web`]: the operator's page (HTTP and server-sent events), served
+//!   from the outputs the daemon publishes.
 //! - `dispatch`: the dispatcher, in the input subscriber's callback:
 //!   routes each message, in arrival order, to its vessel's task, and counts
 //!   what is in flight (the forecast threads yield while the fault path does
@@ -39,6 +41,7 @@ pub mod persist;
 pub mod settings;
 pub mod stats;
 pub mod vessel;
+pub mod web;
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, RwLock};
@@ -141,39 +144,50 @@ pub fn input_key_expr(settings: &Settings) -> String {
     format!("{}/{}/*", settings.keys.prefix(), settings.vessels.own)
 }
 
-/// Runs the daemon on an open Zenoh `session` until `shutdown` is cancelled.
-pub async fn run(
-    settings: Settings,
-    session: Session,
-    shutdown: CancellationToken,
-) -> anyhow::Result<RunSummary> {
-    run_with_tap(settings, session, shutdown, None, LatestStates::default()).await
+/// Everything a run of the daemon needs: its settings, an open Zenoh
+/// session, the token that stops it, and where in-process listeners (the web
+/// page, tests, the benchmark) see what it does.
+pub struct RunConfig {
+    /// The daemon's validated settings.
+    pub settings: Settings,
+    /// An open Zenoh session; the caller closes it after [`run`] returns.
+    pub session: Session,
+    /// Cancelled by the caller to stop the daemon (it drains first).
+    pub shutdown: CancellationToken,
+    /// Where every output is copied for in-process listeners (`None`: nowhere).
+    pub tap: OutputTap,
+    /// The latest state of every vessel (shared with the web page).
+    pub latest: LatestStates,
+    /// Whether the fault path keeps up; the forecast threads yield to it and
+    /// the caller can read it.
+    pub load: crate::forecast::FaultPathLoad,
 }
 
-/// [`run`], also copying every output to `tap` and keeping the latest states
-/// in `latest` (shared with the web page).
-pub async fn run_with_tap(
-    settings: Settings,
-    session: Session,
-    shutdown: CancellationToken,
-    tap: OutputTap,
-    latest: LatestStates,
-) -> anyhow::Result<RunSummary> {
-    let load = crate::forecast::FaultPathLoad::new();
-    run_observed(settings, session, shutdown, tap, latest, load).await
+impl RunConfig {
+    /// A run with no output tap, its own latest states and its own load gauge.
+    pub fn new(settings: Settings, session: Session, shutdown: CancellationToken) -> Self {
+        Self {
+            settings,
+            session,
+            shutdown,
+            tap: None,
+            latest: LatestStates::default(),
+            load: crate::forecast::FaultPathLoad::new(),
+        }
+    }
 }
 
-/// [`run_with_tap`], with the vessel tasks reporting whether the fault path
-/// keeps up to `load` (which the forecast threads yield to, and the caller
-/// can read).
-pub async fn run_observed(
-    settings: Settings,
-    session: Session,
-    shutdown: CancellationToken,
-    tap: OutputTap,
-    latest: LatestStates,
-    load: crate::forecast::FaultPathLoad,
-) -> anyhow::Result<RunSummary> {
+/// Runs the daemon until `config.shutdown` is cancelled, then drains every
+/// vessel and returns what it did.
+pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
+    let RunConfig {
+        settings,
+        session,
+        shutdown,
+        tap,
+        latest,
+        load,
+    } = config;
     let settings = Arc::new(settings);
     let state_key = format!(
         "{}/{}/twin/state",

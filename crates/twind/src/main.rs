@@ -6,8 +6,6 @@
 //! trials, until Ctrl-C); the web page stops with the daemon, and the Zenoh
 //! session is closed last.
 
-mod web;
-
 use std::io::IsTerminal;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -16,8 +14,9 @@ use std::time::Duration;
 use anyhow::Context;
 use clap::Parser;
 use tokio_util::sync::CancellationToken;
-use twin_replay::zenoh_cli::ZenohArgs;
+use twin_zenoh::ZenohArgs;
 use twind::settings::Settings;
+use twind::web;
 
 /// The live digital twin of unmanned surface vessels, over Zenoh.
 #[derive(Debug, Parser)]
@@ -210,9 +209,13 @@ async fn main() -> anyhow::Result<()> {
         }
         r
     } else {
-        twind::run_with_tap(settings, session.clone(), token.clone(), tap, latest)
-            .await
-            .map(|_| ())
+        twind::run(twind::RunConfig {
+            tap,
+            latest,
+            ..twind::RunConfig::new(settings, session.clone(), token.clone())
+        })
+        .await
+        .map(|_| ())
     };
     if let Some(page) = page {
         if page.skipped() > 0 {

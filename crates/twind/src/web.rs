@@ -26,7 +26,7 @@
 //!
 //! # Never blocking the daemon
 //! The daemon copies every output into a `tokio::sync::broadcast` channel
-//! ([`twind::OutputTap`]); sending never waits. One pump task reads it into a
+//! ([`crate::OutputTap`]); sending never waits. One pump task reads it into a
 //! cache (latest outputs and short histories) and re-broadcasts to the page
 //! clients. A client that reads too slowly lags behind its bounded queue and
 //! skips events (it is told how many); a client that vanishes ends its
@@ -41,6 +41,7 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use crate::{LatestStates, OutputEvent};
 use axum::Router;
 use axum::extract::{Path, State};
 use axum::http::{HeaderValue, Method, StatusCode, header};
@@ -56,7 +57,6 @@ use twin_wire::messages::{
 };
 use twin_wire::outputs::{FaultMessage, StateMessage};
 use twin_wire::{KeySpace, Topic};
-use twind::{LatestStates, OutputEvent};
 
 /// Events queued per page client before it lags and skips.
 pub const CLIENT_QUEUE: usize = 8192;
@@ -134,7 +134,7 @@ pub struct WebInfo {
 
 impl WebInfo {
     /// From the daemon's settings.
-    pub fn new(settings: &twind::settings::Settings) -> Self {
+    pub fn new(settings: &crate::settings::Settings) -> Self {
         let d = settings.twin.decision;
         Self {
             service: "twind",

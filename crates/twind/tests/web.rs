@@ -5,10 +5,6 @@
 //! holding up the sender; the server stops with its token even with event
 //! streams open.
 
-#[allow(dead_code)]
-#[path = "../src/web.rs"]
-mod web;
-
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::sync::Arc;
@@ -17,6 +13,7 @@ use std::time::{Duration, Instant};
 use tokio::sync::broadcast;
 use tokio_util::sync::CancellationToken;
 use twin_wire::Topic;
+use twind::web;
 use twind::{LatestStates, OutputEvent};
 
 fn info() -> web::WebInfo {

@@ -786,11 +786,11 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
 
     let cancel = CancellationToken::new();
     let daemon_task = daemon.as_ref().map(|session| {
-        rt.spawn(twind::run(
+        rt.spawn(twind::run(twind::RunConfig::new(
             settings.clone(),
             session.clone(),
             cancel.clone(),
-        ))
+        )))
     });
     let sub_key = match spec.path {
         Path::Daemon => keys.all_vessels(Topic::TwinFault),

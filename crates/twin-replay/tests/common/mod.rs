@@ -12,11 +12,11 @@ use std::time::{Duration, Instant};
 
 use twin_core::geodesy::LatLon;
 use twin_core::sample::{GnssFix, PropellerSpeeds};
-use twin_replay::{Mode, ZenohArgs};
 use twin_wire::assemble::{Assembled, AssemblerConfig, FixAssembler};
 use twin_wire::messages::{ActuatorCommand, encode_actuators, encode_gnss};
 use twin_wire::write::JsonlWriter;
 use twin_wire::{KeySpace, LogReader, ReadOptions, VesselId};
+use twin_zenoh::{Mode, ZenohArgs};
 use zenoh::Session;
 use zenoh::pubsub::Subscriber;
 

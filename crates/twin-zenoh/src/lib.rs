@@ -1,0 +1,12 @@
+//! `twin-zenoh`: what every binary of the USV twin that opens a Zenoh
+//! session shares, so that `twind`, `twin-replay` and any later tool take
+//! the same flags and mean the same by them.
+//!
+//! # Layout
+//! - [`cli`]: Zenoh's usual command-line flags (`--config`, `--mode`,
+//!   `--connect`, `--listen`, `--no-multicast-scouting`) as [`ZenohArgs`],
+//!   and their translation into a [`zenoh::Config`].
+
+pub mod cli;
+
+pub use cli::{Mode, ZenohArgs, ZenohConfigError};
