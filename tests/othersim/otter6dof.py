@@ -279,8 +279,24 @@ class OtterParameters:
     metacentric_heights_m: tuple  # GM_T, GM_L
 
 
-def otter_parameters() -> OtterParameters:
-    """Derives the Otter's model from Fossen's data (module docstring)."""
+@dataclass
+class VesselScales:
+    """Departures of the simulated craft from Fossen's Otter (1 = none): the
+    vessel a twin built on the Otter's numbers is wrong about."""
+
+    mass: float = 1.0  # rigid-body mass and inertia
+    added_mass: float = 1.0  # added mass and inertia
+    surge_damping: float = 1.0  # linear surge damping (hull resistance)
+    sway_damping: float = 1.0  # linear sway damping
+    yaw_damping: float = 1.0  # linear and quadratic yaw damping
+    crossflow: float = 1.0  # cross-flow drag
+    thrust: float = 1.0  # thrust coefficients, both propellers
+
+
+def otter_parameters(scales: VesselScales | None = None) -> OtterParameters:
+    """Derives the Otter's model from Fossen's data (module docstring), with
+    `scales` applied to its mass, added mass, damping and thrust."""
+    sc = scales or VesselScales()
     g, rho = GRAVITY_MPS2, WATER_DENSITY_KGPM3
     length, beam = 2.0, 1.08
     hull_kg, payload_kg = 55.0, PAYLOAD_KG
@@ -318,7 +334,7 @@ def otter_parameters() -> OtterParameters:
             1.7 * inertia[2, 2],
         ]
     )
-    mass = m_rb + added
+    mass = sc.mass * m_rb + sc.added_mass * added
     mass = 0.5 * (mass + mass.T)
 
     # Hydrostatics of two pontoons (Fossen 2021, ch. 4).
@@ -353,19 +369,26 @@ def otter_parameters() -> OtterParameters:
     w_roll = math.sqrt(g44 / mass[3, 3])
     w_pitch = math.sqrt(g55 / mass[4, 4])
     max_speed = 6.0 * 0.5144
+    # The time constants of sway and yaw are Fossen's for his Otter: the
+    # damping derivatives come from its own (unscaled) masses, then scale.
+    nominal = m_rb + added
     damping = (
-        24.4 * g / max_speed,
-        mass[1, 1] / 1.0,
+        sc.surge_damping * 24.4 * g / max_speed,
+        sc.sway_damping * nominal[1, 1] / 1.0,
         2.0 * 0.3 * w_heave * mass[2, 2],
         2.0 * 0.2 * w_roll * mass[3, 3],
         2.0 * 0.4 * w_pitch * mass[4, 4],
-        mass[5, 5] / 1.0,
+        sc.yaw_damping * nominal[5, 5] / 1.0,
     )
 
     # Cross-flow drag: Hoerner's 2D coefficient at B / 2T of one pontoon.
     ratio = pontoon_beam / (2.0 * draft)
     assert 0.6 < ratio < 0.7, ratio
     k_ahead, k_astern = 0.02216 / 2.0, 0.01289 / 2.0
+    # The shaft limits are the Otter's (from its nominal coefficients); a
+    # stronger propeller gives more thrust at the same speed.
+    n_max = math.sqrt(0.5 * 24.4 * g / k_ahead)
+    n_min = -math.sqrt(0.5 * 13.6 * g / k_astern)
 
     def rows(a):
         return tuple(tuple(float(x) for x in row) for row in a)
@@ -379,12 +402,12 @@ def otter_parameters() -> OtterParameters:
         restoring=rows(restoring),
         linear_damping=damping,
         yaw_quadratic_factor_s=10.0,
-        crossflow_coeff=1.0,
+        crossflow_coeff=sc.crossflow * 1.0,
         propeller_offset_m=pontoon_y,
-        thrust_coeff_ahead=k_ahead,
-        thrust_coeff_astern=k_astern,
-        shaft_max_radps=math.sqrt(0.5 * 24.4 * g / k_ahead),
-        shaft_min_radps=-math.sqrt(0.5 * 13.6 * g / k_astern),
+        thrust_coeff_ahead=sc.thrust * k_ahead,
+        thrust_coeff_astern=sc.thrust * k_astern,
+        shaft_max_radps=n_max,
+        shaft_min_radps=n_min,
         shaft_time_constant_s=0.1,
         natural_frequencies_radps=(w_heave, w_roll, w_pitch),
         metacentric_heights_m=(gm_t, gm_l),
@@ -546,6 +569,13 @@ class PathPlan:
     spacing_m: float
 
 
+def straight(length_m: float, speed_mps: float = 1.5, spacing_m: float = 0.25) -> PathPlan:
+    """One leg due north at one speed: no turn at all."""
+    steps = int(round(length_m / spacing_m))
+    north = np.arange(steps + 1) * spacing_m
+    return PathPlan(north, np.zeros(steps + 1), np.full(steps + 1, speed_mps), spacing_m)
+
+
 def lawn_mower(spacing_m: float = 0.25) -> PathPlan:
     """Seven legs north and south, joined by 180 deg turns alternately to
     starboard and to port, with varied radii, leg lengths and speeds."""
@@ -672,6 +702,7 @@ class Effects:
     lever_arm_y_m: float = 0.0
     loss_port: float = 0.0
     loss_starboard: float = 0.0
+    loss_onset_s: float = 0.0  # the losses act from this time on
     kinds: list = field(default_factory=list)
 
 
@@ -695,6 +726,10 @@ class RunConfig:
     disturbance_correlation_s: float = 4.0
     hdop: float = 0.8
     payload_force: bool = False
+    path: str = "lawnmower"  # or "straight"
+    gyro: bool = False  # a rate gyro's yaw rate in each fix's line
+    gyro_sigma_degps: float = 0.2
+    scales: VesselScales = field(default_factory=VesselScales)
 
 
 def flat_to_geodetic(north_m, east_m, lat0_deg, lon0_deg):
@@ -716,12 +751,16 @@ def rfc3339(start: dt.datetime, elapsed_s: float) -> str:
 
 def simulate(cfg: RunConfig, fx: Effects):
     """Runs the trial; returns (log lines, truth dict)."""
-    params = otter_parameters()
+    params = otter_parameters(cfg.scales)
     dyn = OtterDynamics(params, cfg.payload_force)
-    plan = lawn_mower()
+    plan = (
+        straight(1.5 * cfg.duration_s + 50.0)
+        if cfg.path == "straight"
+        else lawn_mower()
+    )
     guidance = PurePursuit(plan)
-    seeds = np.random.SeedSequence(cfg.seed).spawn(4)
-    rng_dist, rng_gnss, rng_heading, rng_shaft = (
+    seeds = np.random.SeedSequence(cfg.seed).spawn(5)
+    rng_dist, rng_gnss, rng_heading, rng_shaft, rng_gyro = (
         np.random.default_rng(s) for s in seeds
     )
 
@@ -731,7 +770,10 @@ def simulate(cfg: RunConfig, fx: Effects):
         fx.current_speed_mps * math.sin(beta),
         0.0,
     )
-    factor = (1.0 - fx.loss_port, 1.0 - fx.loss_starboard)
+    lossy = (1.0 - fx.loss_port, 1.0 - fx.loss_starboard)
+
+    def factor_at(t_s):
+        return lossy if t_s >= fx.loss_onset_s else (1.0, 1.0)
 
     speed0 = float(plan.speed_mps[0])
     n0 = shaft_for_thrust_radps(params, 0.5 * params.linear_damping[0] * speed0)
@@ -757,6 +799,7 @@ def simulate(cfg: RunConfig, fx: Effects):
     gnss_samples = []  # (t, x, ground velocity of the antenna, antenna position)
     shaft_samples = []
     heading_truth = []  # (t, psi) at every step, for sampling at the stamps
+    rate_truth = []  # r at every step
     track = []
 
     antenna = (fx.lever_arm_x_m, fx.lever_arm_y_m, -cfg.antenna_height_m)
@@ -768,6 +811,8 @@ def simulate(cfg: RunConfig, fx: Effects):
         vel_n = [ground_lin[i] + current[i] for i in range(3)]
         sog = math.hypot(vel_n[0], vel_n[1])
         heading_truth.append(x[5])
+        rate_truth.append(x[11])
+        factor = factor_at(t)
         if k % per_control == 0:
             course_d, speed_d = guidance.command(x[0], x[1])
             cmd = pilot.command(
@@ -809,11 +854,12 @@ def simulate(cfg: RunConfig, fx: Effects):
                         factor[0] * thrust_n(params, x[12]),
                         factor[1] * thrust_n(params, x[13]),
                     ],
+                    "loss": [1.0 - factor[0], 1.0 - factor[1]],
                 }
             )
         if k == steps:
             break
-        inp = Inputs(cmd, factor, tuple(dist), current)
+        inp = Inputs(cmd, factor_at(t + 0.5 * h), tuple(dist), current)
         x = rk4_step(dyn, x, inp, h)
         dist = a_gm * dist + b_gm * sig * dist_noise[k + 1]
 
@@ -842,6 +888,8 @@ def simulate(cfg: RunConfig, fx: Effects):
         2.0 * math.pi,
     )
     keep = stamps <= cfg.duration_s + 1e-9
+    rate_at = np.interp(stamps, t_grid, np.array(rate_truth))
+    rate_rep = rate_at + math.radians(cfg.gyro_sigma_degps) * rng_gyro.standard_normal(count)
 
     s = np.array(shaft_samples)
     shaft_noise = cfg.shaft_sigma_rpm * rng_shaft.standard_normal((len(s), 2))
@@ -861,6 +909,8 @@ def simulate(cfg: RunConfig, fx: Effects):
             "heading_rad": float(heading_rep[i]),
             "hdop": cfg.hdop,
         }
+        if cfg.gyro:
+            line["yaw_rate_radps"] = float(rate_rep[i])
         events.append((float(stamps[i]), 0, line))
     for i in range(len(s)):
         line = {
@@ -890,7 +940,10 @@ def simulate(cfg: RunConfig, fx: Effects):
             "latency_s": fx.latency_s,
             "lever_arm_m": {"x_m": fx.lever_arm_x_m, "y_m": fx.lever_arm_y_m},
             "loss": {"port": fx.loss_port, "starboard": fx.loss_starboard},
+            "loss_onset_s": fx.loss_onset_s,
         },
+        "vessel_scales": vars(cfg.scales),
+        "path": cfg.path,
         "start_time": rfc3339(cfg.start, 0.0),
         "origin": {"lat_deg": cfg.origin_lat_deg, "lon_deg": cfg.origin_lon_deg},
         "duration_s": cfg.duration_s,
@@ -902,6 +955,7 @@ def simulate(cfg: RunConfig, fx: Effects):
             "velocity_sigma_mps": cfg.velocity_sigma_mps,
             "heading_sigma_deg": cfg.heading_sigma_deg,
             "shaft_rate_hz": 1.0 / cfg.shaft_period_s,
+            "gyro": cfg.gyro,
             "shaft_sigma_rpm": cfg.shaft_sigma_rpm,
             "antenna_height_m": cfg.antenna_height_m,
         },
@@ -1005,6 +1059,16 @@ def parse_args(argv):
     ap.add_argument("--lever-arm-y-m", type=float)
     ap.add_argument("--loss-side", choices=("port", "starboard"))
     ap.add_argument("--loss", type=float)
+    ap.add_argument("--loss-onset-s", type=float, default=0.0,
+                    help="the loss acts from this time on (s)")
+    ap.add_argument("--path", choices=("lawnmower", "straight"), default="lawnmower")
+    ap.add_argument("--shaft-rate-hz", type=float, default=10.0)
+    ap.add_argument("--gyro", action="store_true",
+                    help="write a rate gyro's yaw_rate_radps into each fix's line")
+    for name in ("mass", "added-mass", "surge-damping", "sway-damping",
+                 "yaw-damping", "crossflow", "thrust"):
+        ap.add_argument(f"--{name}-scale", type=float, default=1.0,
+                        help=f"the craft's {name.replace('-', ' ')} times this")
     ap.add_argument("--duration-s", type=float, default=300.0)
     ap.add_argument("--step-s", type=float, default=0.05)
     ap.add_argument(
@@ -1048,11 +1112,24 @@ def main(argv=None) -> int:
     # The draw of missing sizes uses a stream of its own.
     draw_rng = np.random.default_rng(np.random.SeedSequence([args.seed, 0xEFFEC7]))
     fx = effects_from_args(args, draw_rng)
+    fx.loss_onset_s = args.loss_onset_s
     cfg = RunConfig(
         seed=args.seed,
         duration_s=args.duration_s,
         step_s=args.step_s,
         payload_force=args.fossen_payload_force,
+        path=args.path,
+        gyro=args.gyro,
+        shaft_period_s=1.0 / args.shaft_rate_hz,
+        scales=VesselScales(
+            mass=args.mass_scale,
+            added_mass=args.added_mass_scale,
+            surge_damping=args.surge_damping_scale,
+            sway_damping=args.sway_damping_scale,
+            yaw_damping=args.yaw_damping_scale,
+            crossflow=args.crossflow_scale,
+            thrust=args.thrust_scale,
+        ),
     )
     lines, truth = simulate(cfg, fx)
     with open(args.out, "w", encoding="utf-8") as f:

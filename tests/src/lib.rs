@@ -1,6 +1,8 @@
 //! Shared helpers of the cross-crate tests: run the twin over a simulated
 //! trial and collect what the tests judge.
 
+pub mod trust;
+
 use twin_core::geodesy::wrap_pi;
 use twin_core::twin::{StepOutput, TwinConfig, VesselTwin};
 use twin_sim::{SensorEvent, SimRun};

@@ -116,6 +116,7 @@ fn fixes(n: usize) -> Vec<Vec<u8>> {
                 sog_mps: 1.0,
                 cog_rad: 0.0,
                 heading_rad: Some(0.0),
+                yaw_rate_radps: None,
                 hdop: Some(0.8),
                 replay: false,
             };

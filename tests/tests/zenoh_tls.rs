@@ -132,6 +132,7 @@ fn fix(i: usize) -> Vec<u8> {
         sog_mps: 1.0,
         cog_rad: 0.0,
         heading_rad: Some(0.0),
+        yaw_rate_radps: None,
         hdop: Some(0.8),
         replay: false,
     })

@@ -378,6 +378,7 @@ impl TrialFile {
             process_noise_density: from_rows(&c.process_noise_density),
             measurement_noise: from_rows(&c.measurement_noise),
             forgetting_time_constant_s: c.forgetting_time_constant_s,
+            fault_memory_factor: SVector::repeat(1.0),
             initial_fault_covariance: from_rows(&c.initial_fault_covariance),
             anti_windup_ratio: c.anti_windup_ratio,
             excitation_sigma: c.excitation_sigma,

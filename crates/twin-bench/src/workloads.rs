@@ -9,10 +9,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
-use twin_core::aekf::{Aekf, AekfState};
-use twin_core::estimator::{CourseGate, KineticBase, KineticOptions, LocalFix, ShaftAccumulator};
+use twin_core::estimator::{
+    CourseGate, KineticBase, KineticOptions, KineticState, LocalFix, ShaftAccumulator,
+};
 use twin_core::model::Measurement;
-use twin_core::models::otter_twin::{OtterTwin, ShaftSpeeds};
+use twin_core::models::otter_twin::{MEASUREMENTS, ShaftSpeeds};
 use twin_core::sample::{GnssFix, PropellerSpeeds};
 use twin_core::twin::{TwinConfig, VesselTwin};
 use twin_sim::{Scenario, SensorEvent, SimRun};
@@ -53,7 +54,7 @@ pub enum TwinInput {
 /// heading joined (as `twin simulate` writes them) and the measured shaft
 /// speeds, in time order.
 pub fn twin_inputs(run: &SimRun) -> Vec<TwinInput> {
-    let mut fixes = twin_cli::simulate::fixes_with_headings(run).into_iter();
+    let mut fixes = twin_cli::simulate::fixes_as_logged(run).into_iter();
     run.events
         .iter()
         .filter_map(|e| match e {
@@ -95,9 +96,9 @@ pub fn feed(twin: &mut VesselTwin, inputs: &[TwinInput]) {
     }
 }
 
-/// The extended twin's filter (`OtterTwin<8>`: 8 states, 5 measurements, 2
-/// losses) as `VesselTwin` runs it.
-pub type KineticFilter = Aekf<OtterTwin<8>, 8, 5, 2>;
+/// The extended twin's filter (`OtterTwin`: 9 states, 6 measurements, 4
+/// faults) as `VesselTwin` runs it.
+pub use twin_core::estimator::KineticFilter;
 
 /// One step of the extended twin's filter.
 #[derive(Debug, Clone, Copy)]
@@ -105,7 +106,7 @@ pub struct KineticStep {
     /// Mean shaft speeds since the previous fix.
     pub input: ShaftSpeeds,
     /// The fix as the filter's measurement.
-    pub y: Measurement<5>,
+    pub y: Measurement<MEASUREMENTS>,
     /// Time since the previous fix, s.
     pub dt_s: f64,
 }
@@ -117,11 +118,11 @@ pub struct KineticSteps {
     /// The filter, configured as the twin's.
     pub filter: KineticFilter,
     /// The estimate before the first recorded step.
-    pub start: AekfState<8, 5, 2>,
+    pub start: KineticState,
     /// The steps.
     pub steps: Vec<KineticStep>,
     /// The twin's own estimate after the last step (to check a replay).
-    pub twin_end: AekfState<8, 5, 2>,
+    pub twin_end: KineticState,
 }
 
 /// Records the extended twin's filter steps over `inputs` with `config`:
@@ -189,13 +190,13 @@ pub fn kinetic_steps(inputs: &[TwinInput], config: TwinConfig) -> anyhow::Result
 impl KineticSteps {
     /// Replays every step once through the filter from the start; the
     /// estimate at the end.
-    pub fn run_once(&self) -> AekfState<8, 5, 2> {
+    pub fn run_once(&self) -> KineticState {
         self.run_once_in(StepCode::Dispatched)
     }
 
     /// [`Self::run_once`] in the given copy of the step's code.
     #[inline(never)]
-    pub fn run_once_in(&self, code: StepCode) -> AekfState<8, 5, 2> {
+    pub fn run_once_in(&self, code: StepCode) -> KineticState {
         let mut est = self.start;
         for s in &self.steps {
             let (input, y, dt_s) = (black_box(&s.input), black_box(&s.y), black_box(s.dt_s));

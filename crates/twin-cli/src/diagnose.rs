@@ -42,8 +42,8 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 use twin_core::diagnose::{
-    BaseModel, COMPONENTS, DiagEvent, DiagnoseConfig, Diagnosis, InnovationRecord, ResidualSummary,
-    diagnose, prepare,
+    BaseModel, COMPONENT_COUNT, COMPONENTS, DiagEvent, DiagnoseConfig, Diagnosis, InnovationRecord,
+    ResidualSummary, diagnose, prepare,
 };
 use twin_core::geodesy::rad_to_compass_deg;
 use twin_wire::{
@@ -169,17 +169,17 @@ pub struct ResidualsJson {
     /// Steps.
     pub steps: usize,
     /// Mean innovation per component.
-    pub mean: [f64; 6],
+    pub mean: [f64; COMPONENT_COUNT],
     /// Bias in standard errors per component.
-    pub bias_z: [f64; 6],
+    pub bias_z: [f64; COMPONENT_COUNT],
     /// RMS per component.
-    pub rms: [f64; 6],
+    pub rms: [f64; COMPONENT_COUNT],
     /// Lag-1 autocorrelation per component.
-    pub lag1: [f64; 6],
+    pub lag1: [f64; COMPONENT_COUNT],
     /// Mean NIS per degree of freedom.
     pub nis_per_dof: f64,
     /// Which components were measured.
-    pub measured: [bool; 6],
+    pub measured: [bool; COMPONENT_COUNT],
     /// Strongest correlations with signatures.
     pub signatures: Vec<SignatureJson>,
 }
@@ -369,7 +369,7 @@ pub fn render_text(r: &DiagnoseReport) -> String {
         "  nominal      NIS per dof {:.2} on held-out data (1.0 when the model explains the data)",
         n.nis_per_dof
     );
-    for c in 0..6 {
+    for c in 0..COMPONENT_COUNT {
         if n.measured[c] && n.bias_z[c].abs() > 3.0 {
             let _ = writeln!(
                 o,
@@ -459,7 +459,7 @@ pub fn write_plots(r: &DiagnoseReport, dir: &Path) -> std::io::Result<Vec<PathBu
             .map(|r| (r.time_s - t0, r.innovation[c]))
             .collect()
     };
-    for c in 0..6 {
+    for c in 0..COMPONENT_COUNT {
         if !d.nominal.measured[c] {
             continue;
         }

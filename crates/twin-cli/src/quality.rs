@@ -62,14 +62,21 @@ pub fn chi2_quantile(dof: u64, q: Quantile) -> f64 {
 
 /// The names of the innovation components, in [`twin_core::twin::StepOutput`]
 /// order.
-pub const COMPONENTS: [&str; 5] = ["north_m", "east_m", "sog_mps", "cog_rad", "heading_rad"];
+pub const COMPONENTS: [&str; 6] = [
+    "north_m",
+    "east_m",
+    "sog_mps",
+    "cog_rad",
+    "heading_rad",
+    "yaw_rate_radps",
+];
 
 /// Running innovation and NIS statistics of one estimator.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct QualityAccumulator {
     steps: u64,
-    sum_sq: [f64; 5],
-    count: [u64; 5],
+    sum_sq: [f64; 6],
+    count: [u64; 6],
     sum_nis: f64,
     sum_dof: u64,
     above_95: u64,
@@ -79,12 +86,12 @@ pub struct QualityAccumulator {
 impl QualityAccumulator {
     /// Takes one step's innovation (components marked available), its NIS
     /// and degrees of freedom.
-    pub fn push(&mut self, innovation: &[f64; 5], available: &[bool; 5], nis: f64, dof: usize) {
+    pub fn push(&mut self, innovation: &[f64; 6], available: &[bool; 6], nis: f64, dof: usize) {
         if dof == 0 || !nis.is_finite() {
             return;
         }
         self.steps += 1;
-        for i in 0..5 {
+        for i in 0..6 {
             if available[i] && innovation[i].is_finite() {
                 self.sum_sq[i] += innovation[i] * innovation[i];
                 self.count[i] += 1;
@@ -129,6 +136,7 @@ impl QualityAccumulator {
                 sog_mps: rms(2),
                 cog_rad: rms(3),
                 heading_rad: rms(4),
+                yaw_rate_radps: rms(5),
             },
             measured: self.count,
             mean_nis: self.sum_nis / self.steps as f64,
@@ -157,6 +165,8 @@ pub struct InnovationRms {
     pub cog_rad: Option<f64>,
     /// Heading, rad.
     pub heading_rad: Option<f64>,
+    /// Yaw rate, rad/s.
+    pub yaw_rate_radps: Option<f64>,
 }
 
 /// The consistency of one estimator over a log.
@@ -168,7 +178,7 @@ pub struct Quality {
     pub innovation_rms: InnovationRms,
     /// Steps in which each component (`north`, `east`, `sog`, `cog`,
     /// `heading`) was measured.
-    pub measured: [u64; 5],
+    pub measured: [u64; 6],
     /// Mean NIS per step.
     pub mean_nis: f64,
     /// Mean degrees of freedom per step.
@@ -214,8 +224,8 @@ mod tests {
             let z = [1.0, -1.0, 1.0, -1.0][k % 4];
             let nis = 2.0 * (1.0 + 0.3 * z);
             acc.push(
-                &[0.3 * z, -0.3 * z, 0.0, 0.0, 0.0],
-                &[true, true, false, false, false],
+                &[0.3 * z, -0.3 * z, 0.0, 0.0, 0.0, 0.0],
+                &[true, true, false, false, false, false],
                 nis,
                 2,
             );
@@ -225,12 +235,12 @@ mod tests {
         assert!(q.nis_within_band);
         assert!((q.innovation_rms.north_m.unwrap() - 0.3).abs() < 1e-12);
         assert_eq!(q.innovation_rms.sog_mps, None);
-        assert_eq!(q.measured, [4000, 4000, 0, 0, 0]);
+        assert_eq!(q.measured, [4000, 4000, 0, 0, 0, 0]);
         assert!(q.nis_band_95[0] < 1.0 && q.nis_band_95[1] > 1.0);
         // Twice the NIS is far outside for so many steps.
         let mut bad = QualityAccumulator::default();
         for _ in 0..4000 {
-            bad.push(&[0.0; 5], &[true; 5], 10.0, 5);
+            bad.push(&[0.0; 6], &[true; 6], 10.0, 5);
         }
         assert!(!bad.summary().unwrap().nis_within_band);
         assert_eq!(QualityAccumulator::default().summary(), None);

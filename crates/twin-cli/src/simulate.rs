@@ -6,22 +6,25 @@
 //! - **NMEA 0183** (`.nmea`, `.log`, `.txt`): a `$GPZDA` first (the date),
 //!   then per GNSS fix `$GPGGA` (position, quality, HDOP), `$GPRMC` (date,
 //!   position, SOG, true COG), `$GPVTG` (COG, SOG); per heading sample
-//!   `$HEHDT`; per measured shaft-speed sample `$ERRPM,S,1` (starboard) and
+//!   `$HEHDT`; per yaw-rate sample `$TIROT` (degrees per minute); per
+//!   measured shaft-speed sample `$ERRPM,S,1` (starboard) and
 //!   `$ERRPM,S,2` (port): shafts numbered from the centre line, odd =
 //!   starboard, even = port. HDT and RPM carry no time: the reader gives
 //!   them the time of the latest timed sentence, so one that is not at a
 //!   fix's time is preceded by a `$GPZDA` of its own time. The commanded
 //!   shaft speeds are not written (a log records what the shafts did).
 //! - **JSON lines** (`.jsonl`): the project's own format (`twin-wire`
-//!   `JsonlWriter`): a `gnss` line per fix (heading joined, see below) and
-//!   an `actuators` line (`rpm`) per measured shaft-speed sample.
+//!   `JsonlWriter`): a `gnss` line per fix (heading and yaw rate joined,
+//!   see below) and an `actuators` line (`rpm`) per measured shaft-speed
+//!   sample.
 //!
-//! # Heading
-//! The simulator gives headings as samples of their own. A fix carries the
-//! latest heading sample stamped at or before it, not older than
-//! [`MAX_HEADING_AGE_S`] and not used by an earlier fix: the rule by which
-//! `twin_wire::FixAssembler` joins an NMEA HDT to a fix, so both formats
-//! read back as the same fixes.
+//! # Heading and yaw rate
+//! The simulator gives headings and yaw rates as samples of their own. A
+//! fix carries the latest heading sample stamped at or before it, not older
+//! than [`MAX_HEADING_AGE_S`] and not used by an earlier fix, and likewise
+//! the latest yaw-rate sample within [`MAX_YAW_RATE_AGE_S`]: the rules by
+//! which `twin_wire::FixAssembler` joins an NMEA HDT and ROT to a fix, so
+//! both formats read back as the same fixes.
 //!
 //! # Precision (what the NMEA text loses; checked by the round-trip tests)
 //! The `twin-wire` writers keep more than most receivers do: time to the
@@ -56,7 +59,7 @@ use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 use twin_core::sample::{GnssFix, Side};
-use twin_sim::{HeadingSample, Scenario, ScenarioError, SensorEvent, SimRun};
+use twin_sim::{Scenario, ScenarioError, SensorEvent, SimRun};
 use twin_wire::measurement::{FixMethod, Talker};
 use twin_wire::messages::ActuatorCommand;
 use twin_wire::write::{JsonlWriter, WriteError, nmea0183};
@@ -66,6 +69,10 @@ use crate::truth::{TruthError, write_truth};
 /// A heading joins a fix only if at most this much older, s (the
 /// assembler's default `max_heading_age_s`).
 pub const MAX_HEADING_AGE_S: f64 = 1.0;
+
+/// A yaw rate joins a fix only if at most this much older, s (the
+/// assembler's default `max_yaw_rate_age_s`).
+pub const MAX_YAW_RATE_AGE_S: f64 = 0.5;
 
 /// Two stamps closer than this are the same instant, s.
 const SAME_STAMP_S: f64 = 1e-6;
@@ -152,6 +159,8 @@ pub struct SimulateSummary {
     pub fixes_without_course: usize,
     /// Heading samples written (HDT; in JSON lines they ride on the fixes).
     pub headings: usize,
+    /// Yaw-rate samples written (ROT; in JSON lines they ride on the fixes).
+    pub yaw_rates: usize,
     /// Measured shaft-speed samples written (pairs).
     pub propeller_samples: usize,
     /// Lines written to the log.
@@ -165,26 +174,52 @@ fn talker(id: &[u8; 2]) -> Talker {
     Talker::new(*id).unwrap_or(Talker::GP)
 }
 
-/// The simulator's GNSS fixes with the heading samples joined (module doc).
-pub fn fixes_with_headings(run: &SimRun) -> Vec<GnssFix> {
-    let headings: Vec<HeadingSample> = run.headings().copied().collect();
+/// The latest sample at or before each fix, not older than `max_age_s` and
+/// not used by an earlier fix: `(time, value)` samples in time order.
+fn join_latest(fix_times: &[f64], samples: &[(f64, f64)], max_age_s: f64) -> Vec<Option<f64>> {
     let mut next = 0;
-    // The latest heading reached and whether a fix has used it.
-    let mut latest: Option<(HeadingSample, bool)> = None;
-    run.gnss_fixes()
-        .map(|fix| {
-            while next < headings.len() && headings[next].time_s <= fix.time_s + SAME_STAMP_S {
-                latest = Some((headings[next], false));
+    // The latest sample reached and whether a fix has used it.
+    let mut latest: Option<((f64, f64), bool)> = None;
+    fix_times
+        .iter()
+        .map(|t| {
+            while next < samples.len() && samples[next].0 <= t + SAME_STAMP_S {
+                latest = Some((samples[next], false));
                 next += 1;
             }
-            let mut fix = *fix;
-            if let Some((h, used)) = &mut latest
-                && !*used
-                && fix.time_s - h.time_s <= MAX_HEADING_AGE_S
-            {
-                fix.heading_rad = Some(h.heading_rad);
-                *used = true;
+            match &mut latest {
+                Some(((ts, value), used)) if !*used && t - *ts <= max_age_s => {
+                    *used = true;
+                    Some(*value)
+                }
+                _ => None,
             }
+        })
+        .collect()
+}
+
+/// The simulator's GNSS fixes with the heading and yaw-rate samples joined
+/// as a logger joins them (module doc).
+pub fn fixes_as_logged(run: &SimRun) -> Vec<GnssFix> {
+    let fixes: Vec<GnssFix> = run.gnss_fixes().copied().collect();
+    let times: Vec<f64> = fixes.iter().map(|f| f.time_s).collect();
+    let headings: Vec<(f64, f64)> = run.headings().map(|h| (h.time_s, h.heading_rad)).collect();
+    let rates: Vec<(f64, f64)> = run
+        .events
+        .iter()
+        .filter_map(|e| match e {
+            SensorEvent::YawRate(y) => Some((y.time_s, y.yaw_rate_radps)),
+            _ => None,
+        })
+        .collect();
+    let headings = join_latest(&times, &headings, MAX_HEADING_AGE_S);
+    let rates = join_latest(&times, &rates, MAX_YAW_RATE_AGE_S);
+    fixes
+        .into_iter()
+        .zip(headings.into_iter().zip(rates))
+        .map(|(mut fix, (heading, rate))| {
+            fix.heading_rad = heading;
+            fix.yaw_rate_radps = rate;
             fix
         })
         .collect()
@@ -194,10 +229,11 @@ pub fn fixes_with_headings(run: &SimRun) -> Vec<GnssFix> {
 pub fn write_nmea<W: Write>(run: &SimRun, out: W) -> Result<SimulateSummary, SimulateError> {
     let gp = Talker::GP;
     let he = talker(b"HE");
+    let ti = talker(b"TI");
     let er = talker(b"ER");
     let mut w = LineWriter::new(out);
     let mut summary = SimulateSummary::default();
-    let fixes = fixes_with_headings(run);
+    let fixes = fixes_as_logged(run);
     let mut fix_iter = fixes.iter();
     // Time of the latest timed sentence written, s.
     let mut clock: Option<f64> = None;
@@ -227,6 +263,11 @@ pub fn write_nmea<W: Write>(run: &SimRun, out: W) -> Result<SimulateSummary, Sim
                 timed(&mut w, &mut clock, h.time_s)?;
                 w.line(&nmea0183::hdt(he, h.heading_rad)?)?;
                 summary.headings += 1;
+            }
+            SensorEvent::YawRate(y) => {
+                timed(&mut w, &mut clock, y.time_s)?;
+                w.line(&nmea0183::rot(ti, y.yaw_rate_radps)?)?;
+                summary.yaw_rates += 1;
             }
             SensorEvent::PropellerMeasured(p) => {
                 timed(&mut w, &mut clock, p.time_s)?;
@@ -271,7 +312,7 @@ impl<W: Write> LineWriter<W> {
 pub fn write_jsonl<W: Write>(run: &SimRun, out: W) -> Result<SimulateSummary, SimulateError> {
     let mut w = JsonlWriter::new(out);
     let mut summary = SimulateSummary::default();
-    let fixes = fixes_with_headings(run);
+    let fixes = fixes_as_logged(run);
     let mut fix_iter = fixes.iter();
     for event in &run.events {
         match event {
@@ -292,6 +333,7 @@ pub fn write_jsonl<W: Write>(run: &SimRun, out: W) -> Result<SimulateSummary, Si
                 summary.lines += 1;
             }
             SensorEvent::Heading(_) => summary.headings += 1,
+            SensorEvent::YawRate(_) => summary.yaw_rates += 1,
             SensorEvent::PropellerCommanded(_) => {}
         }
     }

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use std::process::Command;
 
 use twin_cli::demo::{SCENARIO, workspace_root};
-use twin_cli::simulate::{OutputFormat, fixes_with_headings, write_log};
+use twin_cli::simulate::{OutputFormat, fixes_as_logged, write_log};
 use twin_core::geodesy::angle_diff;
 use twin_core::sample::{GnssFix, PropellerSpeeds, RADPS_PER_RPM};
 use twin_sim::{ManualCommand, ManualSpec, Scenario, SimRun};
@@ -70,7 +70,7 @@ fn write(run: &SimRun, format: OutputFormat) -> Vec<u8> {
 #[test]
 fn json_lines_read_back_exactly() {
     let run = twin_sim::simulate(&scenario()).expect("simulates");
-    let expected = fixes_with_headings(&run);
+    let expected = fixes_as_logged(&run);
     let measured: Vec<PropellerSpeeds> = run.measured_propellers().copied().collect();
     let back = read_back(&write(&run, OutputFormat::JsonLines));
     assert_eq!(back.format, LogFormat::JsonLines);
@@ -103,7 +103,7 @@ fn json_lines_read_back_exactly() {
 #[test]
 fn nmea_reads_back_within_the_written_precision() {
     let run = twin_sim::simulate(&scenario()).expect("simulates");
-    let expected = fixes_with_headings(&run);
+    let expected = fixes_as_logged(&run);
     let measured: Vec<PropellerSpeeds> = run.measured_propellers().copied().collect();
     let bytes = write(&run, OutputFormat::Nmea);
     let back = read_back(&bytes);

@@ -4,7 +4,7 @@
 //! copy. Run with `cargo bench -p twin-core`.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use nalgebra::{SMatrix, Vector2, Vector4};
+use nalgebra::{SMatrix, SVector, Vector2, Vector4};
 use std::hint::black_box;
 use twin_core::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
 use twin_core::model::Measurement;
@@ -15,6 +15,7 @@ fn seed_config() -> AekfConfig<4, 4, 2> {
         process_noise_density: SMatrix::identity() * 0.05,
         measurement_noise: SMatrix::identity() * 0.04,
         forgetting_time_constant_s: 40.0,
+        fault_memory_factor: SVector::repeat(1.0),
         initial_fault_covariance: SMatrix::identity() * 0.1,
         anti_windup_ratio: 0.1,
         excitation_sigma: 0.02,

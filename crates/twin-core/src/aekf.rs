@@ -82,6 +82,11 @@ pub struct AekfConfig<const N: usize, const M: usize, const P: usize> {
     /// `lambda = exp(-dt / tau)`. The seed's `lambda = 0.995` is `tau = 40 s` at
     /// `dt = 0.2 s` and `tau = 0.2 s` at `dt = 1 ms`.
     pub forgetting_time_constant_s: f64,
+    /// Per fault component, a factor on that time constant: 1 forgets at the
+    /// configured rate; a larger factor remembers longer (a parameter that
+    /// changes slowly, such as a hull's drag, beside losses that can change
+    /// at any time); infinity never forgets.
+    pub fault_memory_factor: SVector<f64, P>,
     /// Initial fault covariance `S(0)` (the seed: `0.1 I`); zero freezes the
     /// faults at their initial values.
     pub initial_fault_covariance: SMatrix<f64, P, P>,
@@ -119,9 +124,10 @@ pub struct AekfState<const N: usize, const M: usize, const P: usize> {
     /// Information about each fault component gathered within the memory
     /// window and held while unexcited: drives the anti-windup.
     pub held_information: SVector<f64, P>,
-    /// Information about each fault component from the last memory window
-    /// (always forgetting): drives the excitation flag.
-    pub recent_information: SVector<f64, P>,
+    /// Information about the faults from the last memory window (always
+    /// forgetting), as a matrix: drives the excitation flags, in any
+    /// direction of the faults (one component, or a difference of two).
+    pub recent_information: SMatrix<f64, P, P>,
     /// Steps taken.
     pub steps: u64,
 }
@@ -144,7 +150,7 @@ impl<const N: usize, const M: usize, const P: usize> AekfState<N, M, P> {
             process_noise_density: config.process_noise_density,
             measurement_noise: config.measurement_noise,
             held_information: SVector::zeros(),
-            recent_information: SVector::zeros(),
+            recent_information: SMatrix::zeros(),
             steps: 0,
         }
     }
@@ -155,10 +161,31 @@ impl<const N: usize, const M: usize, const P: usize> AekfState<N, M, P> {
     }
 
     /// Whether each fault component is excited: the data of the last memory
-    /// window alone pin it down to `excitation_sigma` or better.
+    /// window alone pin it down to `excitation_sigma` or better (its own
+    /// information, as if the other faults were known).
     pub fn excited(&self, excitation_sigma: f64) -> [bool; P] {
         let needed = 1.0 / (excitation_sigma * excitation_sigma);
-        std::array::from_fn(|i| self.recent_information[i] >= needed)
+        std::array::from_fn(|i| self.recent_information[(i, i)] >= needed)
+    }
+
+    /// The information of the last memory window about the combination
+    /// `direction^T theta` with the other directions unknown:
+    /// `1 / (d^T I^-1 d)`, with `I` the recent information regularised by
+    /// `prior_information` (the information a prior gives each component,
+    /// so that directions the data never saw do not make `I` singular).
+    pub fn recent_information_along(
+        &self,
+        direction: &SVector<f64, P>,
+        prior_information: &SVector<f64, P>,
+    ) -> f64 {
+        let regularised = self.recent_information + SMatrix::from_diagonal(prior_information);
+        match crate::linalg::solve_general(&regularised, direction) {
+            Some(v) => {
+                let quad = direction.dot(&v);
+                if quad > 0.0 { 1.0 / quad } else { 0.0 }
+            }
+            None => 0.0,
+        }
     }
 
     /// True if every number is finite, the state covariance has a positive
@@ -290,6 +317,11 @@ where
                 "forgetting_time_constant_s must be positive",
             ));
         }
+        if config.fault_memory_factor.iter().any(|f| f.is_nan() || *f <= 0.0) {
+            return Err(AekfError::InvalidConfig(
+                "fault_memory_factor must be positive",
+            ));
+        }
         if !(config.anti_windup_ratio >= 0.0 && config.anti_windup_ratio <= 1.0) {
             return Err(AekfError::InvalidConfig(
                 "anti_windup_ratio must be in [0, 1]",
@@ -312,10 +344,11 @@ where
                 which: "measurement noise R",
             });
         }
-        // S(0) = 0 freezes the faults at their initial values: a model that
-        // estimates no faults (the nominal model of `diagnose`).
-        let s0 = config.initial_fault_covariance;
-        if s0.iter().any(|v| *v != 0.0) && cholesky(&s0).is_none() {
+        // A fault whose row and column of S(0) are zero is held at its
+        // initial value (S(0) = 0: a model that estimates no faults, the
+        // nominal model of `diagnose`); the others' block must be positive
+        // definite.
+        if !held_block_positive_definite(&config.initial_fault_covariance) {
             return Err(AekfError::NotPositiveDefinite {
                 which: "initial fault covariance S(0)",
             });
@@ -521,8 +554,16 @@ where
         // equivalent form with the forgotten S_f = D^-1/2 S D^-1/2.
         let sigma_inv_omega = sigma_chol.solve(&omega);
         let info_gain = mul_tn(&omega, &sigma_inv_omega);
+        let lambdas = SVector::<f64, P>::from_fn(|i, _| {
+            let factor = self.config.fault_memory_factor[i];
+            if factor == 1.0 {
+                lambda
+            } else {
+                (-dt_s / (self.config.forgetting_time_constant_s * factor)).exp()
+            }
+        });
         let forgetting = forgetting_factors(
-            lambda,
+            &lambdas,
             &info_gain.diagonal(),
             &state.held_information,
             self.config.anti_windup_ratio,
@@ -573,7 +614,7 @@ where
         }
         let held_information =
             forgetting.component_mul(&state.held_information) + info_gain.diagonal();
-        let recent_information = state.recent_information * lambda + info_gain.diagonal();
+        let recent_information = state.recent_information * lambda + info_gain;
 
         // Optional noise adaptation, for use from the next step.
         // (None: unchanged, and then neither copied nor written back.)
@@ -693,6 +734,27 @@ fn joseph_update<const N: usize, const M: usize>(
     p_post
 }
 
+/// Whether `s` is positive definite on the components with a non-zero
+/// diagonal and exactly zero in the rows and columns of the others.
+fn held_block_positive_definite<const P: usize>(s: &SMatrix<f64, P, P>) -> bool {
+    let free: [bool; P] = std::array::from_fn(|i| s[(i, i)] != 0.0);
+    for i in 0..P {
+        for j in 0..P {
+            if (!free[i] || !free[j]) && s[(i, j)] != 0.0 {
+                return false;
+            }
+        }
+    }
+    // The free block, with the held components replaced by ones on the
+    // diagonal (which leaves its definiteness as it is).
+    let block = SMatrix::<f64, P, P>::from_fn(|i, j| match (free[i], free[j]) {
+        (true, true) => s[(i, j)],
+        _ if i == j => 1.0,
+        _ => 0.0,
+    });
+    cholesky(&block).is_some()
+}
+
 fn is_diagonal<const M: usize>(r: &SMatrix<f64, M, M>) -> bool {
     (0..M).all(|i| (0..M).all(|j| i == j || r[(i, j)] == 0.0))
 }
@@ -711,12 +773,13 @@ fn is_diagonal<const M: usize>(r: &SMatrix<f64, M, M>) -> bool {
 /// slowly (linearly, by `gain (1/ratio_min - 1)` per step), so weak excitation
 /// cannot wind `S` up quickly. `ratio_min = 0` disables it.
 pub fn forgetting_factors<const P: usize>(
-    lambda: f64,
+    lambdas: &SVector<f64, P>,
     info_gain: &SVector<f64, P>,
     held_information: &SVector<f64, P>,
     ratio_min: f64,
 ) -> SVector<f64, P> {
     SVector::from_fn(|i, _| {
+        let lambda = lambdas[i];
         if ratio_min <= 0.0 {
             return lambda;
         }
@@ -738,7 +801,7 @@ pub fn forgetting_factors<const P: usize>(
 mod tests {
     use super::*;
     use crate::models::kinematic::{KinematicInput, KinematicModel};
-    use crate::models::otter_twin::{OtterTwin, ShaftSpeeds, meas};
+    use crate::models::otter_twin::{FAULTS, MEASUREMENTS, OtterTwin, STATES, ShaftSpeeds, meas};
     use crate::twin::TwinConfig;
     use nalgebra::{Vector2, Vector4};
 
@@ -856,20 +919,20 @@ mod tests {
     /// propeller at 70 % and the heading in one fix of three.
     #[allow(clippy::type_complexity)]
     fn otter_trial() -> (
-        Aekf<OtterTwin<8>, 8, 5, 2>,
-        AekfState<8, 5, 2>,
-        Vec<(ShaftSpeeds, Measurement<5>)>,
+        Aekf<OtterTwin, STATES, MEASUREMENTS, FAULTS>,
+        AekfState<STATES, MEASUREMENTS, FAULTS>,
+        Vec<(ShaftSpeeds, Measurement<MEASUREMENTS>)>,
     ) {
         let kinetic = TwinConfig::default().kinetic;
-        let model = OtterTwin::<8>::new(kinetic.params);
+        let model = OtterTwin::new(kinetic.params);
         let filter = Aekf::new(model, kinetic.filter).unwrap();
-        let mut x0 = SVector::<f64, 8>::zeros();
+        let mut x0 = SVector::<f64, STATES>::zeros();
         x0[3] = 1.0;
         let start = AekfState::new(
             &kinetic.filter,
             x0,
             SMatrix::identity() * 0.1,
-            Vector2::zeros(),
+            SVector::zeros(),
         );
         let dt = 0.2;
         let mut truth = x0;
@@ -884,7 +947,12 @@ mod tests {
                     starboard_radps: 100.0 * (1.0 + 0.6 * turn.min(0.0)),
                 };
                 truth = model
-                    .transition(&truth, &u, &Vector2::new(0.3, 0.0), dt)
+                    .transition(
+                        &truth,
+                        &u,
+                        &SVector::from([0.3, 0.0, 0.0, 0.0, 0.0, 0.0]),
+                        dt,
+                    )
                     .next;
                 let observed = model.observe(&truth).predicted;
                 let mut y = Measurement::full(observed);
@@ -901,34 +969,34 @@ mod tests {
     /// does not keep to the sparser one).
     #[test]
     fn the_sparser_observation_pattern_changes_no_number() {
-        struct FullPattern(OtterTwin<8>);
-        impl Model<8, 5, 2> for FullPattern {
+        struct FullPattern(OtterTwin);
+        impl Model<STATES, MEASUREMENTS, FAULTS> for FullPattern {
             type Input = ShaftSpeeds;
             fn transition(
                 &self,
-                x: &SVector<f64, 8>,
+                x: &SVector<f64, STATES>,
                 input: &ShaftSpeeds,
-                theta: &SVector<f64, 2>,
+                theta: &SVector<f64, FAULTS>,
                 dt_s: f64,
-            ) -> crate::model::Transition<8, 2> {
+            ) -> crate::model::Transition<STATES, FAULTS> {
                 self.0.transition(x, input, theta, dt_s)
             }
-            fn observe(&self, x: &SVector<f64, 8>) -> Observation<8, 5> {
+            fn observe(&self, x: &SVector<f64, STATES>) -> Observation<STATES, MEASUREMENTS> {
                 self.0.observe(x)
             }
-            fn measurement_angles(&self) -> [bool; 5] {
+            fn measurement_angles(&self) -> [bool; MEASUREMENTS] {
                 self.0.measurement_angles()
             }
-            fn state_angles(&self) -> [bool; 8] {
+            fn state_angles(&self) -> [bool; STATES] {
                 self.0.state_angles()
             }
-            fn state_names(&self) -> [&'static str; 8] {
+            fn state_names(&self) -> [&'static str; STATES] {
                 self.0.state_names()
             }
-            const TRANSITION_PATTERN: Pattern<8, 8> =
-                <OtterTwin<8> as Model<8, 5, 2>>::TRANSITION_PATTERN;
-            const OBSERVATION_PATTERN: Pattern<5, 8> =
-                <OtterTwin<8> as Model<8, 5, 2>>::OBSERVATION_PATTERN;
+            const TRANSITION_PATTERN: Pattern<STATES, STATES> =
+                <OtterTwin as Model<STATES, MEASUREMENTS, FAULTS>>::TRANSITION_PATTERN;
+            const OBSERVATION_PATTERN: Pattern<MEASUREMENTS, STATES> =
+                <OtterTwin as Model<STATES, MEASUREMENTS, FAULTS>>::OBSERVATION_PATTERN;
         }
         let (filter, start, steps) = otter_trial();
         assert!(filter.model.observation_in_sparser_pattern());

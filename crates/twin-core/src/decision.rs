@@ -2,12 +2,24 @@
 //! `nominal`, `suspect` or `fault`, with the onset time, hysteresis in level
 //! and in time, and `not excited` while the data have never been able to tell.
 //!
-//! Rules (thresholds in [`DecisionConfig`], `k` = `confidence_sigmas`):
+//! Each propeller's loss is judged twice ([`LossEvidence`]): on its own
+//! (absolute), and relative to the other propeller (what the yaw balance
+//! measures even when the losses' common part cannot be told from the
+//! hull's drag). Each judgement, where the data excite it, applies these
+//! rules to its value and standard deviation (thresholds in
+//! [`DecisionConfig`], `k` = `confidence_sigmas`):
 //! - evidence of a fault: `loss >= fault_loss` and `loss - k sigma >= suspect_loss`;
 //! - evidence of a suspect: `loss >= suspect_loss` and `loss - k sigma > 0`;
 //! - evidence of nominal: `loss < clear_loss` or `loss + k sigma < suspect_loss`;
 //! - anything else (between the clear and suspect levels, or too uncertain)
-//!   keeps the current status: that gap is the level hysteresis;
+//!   is no evidence.
+//!
+//! The stronger judgement decides: a fault if either shows one, a suspect if
+//! either shows one and neither a fault, nominal if one shows nominal and
+//! the other nothing worse; no evidence keeps the current status (that gap
+//! is the level hysteresis). A loss whose σ is wide (its common part
+//! unknown) shows nothing on its own, so a hull draggier than its profile
+//! raises no fault, while one propeller weaker than the other does;
 //! - a new level must persist `confirm_s` (going up) or `clear_s` (going
 //!   down) before the status changes: the time hysteresis. Evidence that
 //!   moves further the same way (suspect, then fault) keeps the clock, and
@@ -78,6 +90,23 @@ impl Default for DecisionConfig {
             clear_s: 10.0,
         }
     }
+}
+
+/// What the estimate says of one propeller's loss.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LossEvidence {
+    /// The loss, 0..1.
+    pub loss: f64,
+    /// Its standard deviation.
+    pub sigma: f64,
+    /// Whether the data can tell the loss on its own.
+    pub excited: bool,
+    /// The loss relative to the other propeller.
+    pub relative_loss: f64,
+    /// Its standard deviation.
+    pub relative_sigma: f64,
+    /// Whether the data can tell the relative loss.
+    pub relative_excited: bool,
 }
 
 /// A change of one thruster's status (an alarm).
@@ -165,20 +194,25 @@ impl FaultDecider {
 
     /// Feeds the estimates at `time_s` (`[port, starboard]`) and returns the
     /// status changes this update declared.
-    pub fn update(
-        &mut self,
-        time_s: f64,
-        loss: [f64; 2],
-        sigma: [f64; 2],
-        excited: [bool; 2],
-    ) -> Vec<StatusChange> {
+    pub fn update(&mut self, time_s: f64, evidence: [LossEvidence; 2]) -> Vec<StatusChange> {
         let mut changes = Vec::new();
         for side in Side::BOTH {
             let i = side.index();
-            if !excited[i] || !loss[i].is_finite() || !sigma[i].is_finite() {
+            let e = evidence[i];
+            let absolute = (e.excited && e.loss.is_finite() && e.sigma.is_finite())
+                .then(|| self.evidence(e.loss, e.sigma));
+            let relative =
+                (e.relative_excited && e.relative_loss.is_finite() && e.relative_sigma.is_finite())
+                    .then(|| self.evidence(e.relative_loss, e.relative_sigma));
+            if absolute.is_none() && relative.is_none() {
                 continue;
             }
-            let evidence = self.evidence(loss[i], sigma[i]);
+            let evidence = combine(absolute.flatten(), relative.flatten());
+            // The confidence of a change is that of the judgement that made it.
+            let (loss_i, sigma_i) = match (absolute.flatten(), relative.flatten()) {
+                (_, Some(r)) if Some(r) == evidence => (e.relative_loss, e.relative_sigma),
+                _ => (e.loss, e.sigma),
+            };
             let cfg = self.config;
             let st = &mut self.sides[i];
             if st.status == ThrusterStatus::NotExcited {
@@ -229,7 +263,7 @@ impl FaultDecider {
                 st.status = level;
                 st.onset_time_s = (level > ThrusterStatus::Nominal).then_some(onset);
                 st.candidate = None;
-                let p_above = normal_cdf((loss[i] - cfg.suspect_loss) / sigma[i].max(1e-12));
+                let p_above = normal_cdf((loss_i - cfg.suspect_loss) / sigma_i.max(1e-12));
                 changes.push(StatusChange {
                     side,
                     from,
@@ -243,6 +277,7 @@ impl FaultDecider {
         changes
     }
 
+    /// What one judgement shows (module doc).
     fn evidence(&self, loss: f64, sigma: f64) -> Option<ThrusterStatus> {
         let c = &self.config;
         let k = c.confidence_sigmas;
@@ -259,6 +294,17 @@ impl FaultDecider {
 }
 
 /// The standard normal cumulative distribution, by the complementary error
+/// The stronger of two judgements (module doc): a fault or suspect from
+/// either wins; nominal needs one judgement to show it and the other not to
+/// show worse.
+fn combine(a: Option<ThrusterStatus>, b: Option<ThrusterStatus>) -> Option<ThrusterStatus> {
+    match (a, b) {
+        (Some(x), Some(y)) => Some(x.max(y)),
+        (Some(x), None) | (None, Some(x)) => Some(x),
+        (None, None) => None,
+    }
+}
+
 /// function of Numerical Recipes (`erfc` with fractional error below 1.2e-7).
 pub fn normal_cdf(z: f64) -> f64 {
     if z.is_nan() {
@@ -286,13 +332,80 @@ pub fn normal_cdf(z: f64) -> f64 {
 mod tests {
     use super::*;
 
+    /// Absolute evidence only (the relative loss not excited).
+    fn absolute(loss: f64, sigma: f64, excited: bool) -> LossEvidence {
+        LossEvidence {
+            loss,
+            sigma,
+            excited,
+            relative_loss: f64::NAN,
+            relative_sigma: f64::NAN,
+            relative_excited: false,
+        }
+    }
+
     fn run(decider: &mut FaultDecider, series: &[(f64, f64, f64, bool)]) -> Vec<StatusChange> {
         series
             .iter()
             .flat_map(|(t, loss, sigma, excited)| {
-                decider.update(*t, [*loss, 0.0], [*sigma, 0.01], [*excited, *excited])
+                decider.update(
+                    *t,
+                    [
+                        absolute(*loss, *sigma, *excited),
+                        absolute(0.0, 0.01, *excited),
+                    ],
+                )
             })
             .collect()
+    }
+
+    /// A loss whose common part is unknown (wide sigma) but whose side is
+    /// told by the yaw balance (relative loss) is a fault on its side only;
+    /// a common loss as uncertain as a hull's drag is no fault on either.
+    #[test]
+    fn the_relative_loss_names_the_side_and_a_wide_common_loss_is_no_fault() {
+        let mut d = FaultDecider::new(DecisionConfig::default());
+        let port = LossEvidence {
+            loss: 0.12,
+            sigma: 0.15,
+            excited: true,
+            relative_loss: 0.2,
+            relative_sigma: 0.02,
+            relative_excited: true,
+        };
+        let starboard = LossEvidence {
+            loss: -0.08,
+            sigma: 0.15,
+            excited: true,
+            relative_loss: -0.25,
+            relative_sigma: 0.025,
+            relative_excited: true,
+        };
+        let changes: Vec<StatusChange> = (0..60)
+            .flat_map(|k| d.update(k as f64 * 0.2, [port, starboard]))
+            .collect();
+        assert_eq!(d.decision(Side::Port).status, ThrusterStatus::Fault);
+        assert_eq!(d.decision(Side::Starboard).status, ThrusterStatus::Nominal);
+        assert_eq!(changes.len(), 1, "{changes:?}");
+        assert!(changes[0].confidence > 0.99);
+        // Both 30 % weaker than the profile, as a draggier hull makes them
+        // look, but as uncertain as the hull's drag: no fault.
+        let mut d = FaultDecider::new(DecisionConfig::default());
+        let common = LossEvidence {
+            loss: 0.3,
+            sigma: 0.18,
+            excited: true,
+            relative_loss: 0.0,
+            relative_sigma: 0.02,
+            relative_excited: true,
+        };
+        let changes: Vec<StatusChange> = (0..60)
+            .flat_map(|k| d.update(k as f64 * 0.2, [common, common]))
+            .collect();
+        assert!(changes.is_empty(), "{changes:?}");
+        for side in Side::BOTH {
+            assert_eq!(d.decision(side).status, ThrusterStatus::Nominal);
+        }
     }
 
     #[test]

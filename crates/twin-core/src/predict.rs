@@ -173,7 +173,6 @@ mod tests {
     use super::*;
     use crate::models::otter_twin::{OtterTwin, ShaftSpeeds};
     use crate::twin::TwinConfig;
-    use nalgebra::Vector2;
 
     /// The forecast's AVX2 copy and its baseline code give the same bits
     /// (exact Debug text of every point), on the extended twin in a turn
@@ -184,15 +183,15 @@ mod tests {
             eprintln!("no AVX2 here: both calls run the baseline code");
         }
         let kinetic = TwinConfig::default().kinetic;
-        let model = OtterTwin::<8>::new(kinetic.params);
-        let mut x0 = SVector::<f64, 8>::zeros();
+        let model = OtterTwin::new(kinetic.params);
+        let mut x0 = SVector::<f64, 9>::zeros();
         x0[3] = 1.4;
         x0[5] = 0.1;
         let mut state = AekfState::new(
             &kinetic.filter,
             x0,
             SMatrix::identity() * 0.05,
-            Vector2::new(0.25, 0.0),
+            SVector::from([0.25, 0.0, 0.1, -0.1, 0.05, 0.02]),
         );
         state.upsilon[(3, 0)] = -0.3;
         let inputs = (0..60).map(|k| {

@@ -7,7 +7,8 @@
 use crate::geodesy::LatLon;
 
 /// One GNSS fix: position, and where the receiver gives them, speed and course
-/// over ground, heading (from a dual-antenna receiver or a compass) and HDOP.
+/// over ground, heading (from a dual-antenna receiver or a compass), the yaw
+/// rate (from a rate gyro) and HDOP.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GnssFix {
     /// Time of the fix, seconds since the Unix epoch (UTC), from the message.
@@ -20,6 +21,9 @@ pub struct GnssFix {
     pub cog_rad: Option<f64>,
     /// True heading of the bow, radians clockwise from true north.
     pub heading_rad: Option<f64>,
+    /// Yaw rate from a rate gyro or rate-of-turn sensor joined to the fix,
+    /// rad/s, positive turning the bow to starboard.
+    pub yaw_rate_radps: Option<f64>,
     /// Horizontal dilution of precision, if the receiver reports it.
     pub hdop: Option<f64>,
 }

@@ -30,22 +30,21 @@ use nalgebra::{SMatrix, SVector, Vector2};
 
 use crate::aekf::{AekfError, AekfState, StepReport};
 use crate::decision::{
-    DecisionConfig, FaultDecider, StatusChange, ThrusterDecision, ThrusterStatus,
+    DecisionConfig, FaultDecider, LossEvidence, StatusChange, ThrusterDecision, ThrusterStatus,
 };
 use crate::estimator::seed::step_four;
 use crate::estimator::{
-    CourseGate, FaultPrior, KineticBase, KineticOptions, LocalFix, SeedBase, SeedInputs,
-    ShaftAccumulator,
+    CourseGate, KineticBase, KineticOptions, KineticReport, KineticState, Learnt, LocalFix,
+    SeedBase, SeedInputs, ShaftAccumulator, Surroundings,
 };
 pub use crate::estimator::{KineticConfig, SeedConfig};
 use crate::geodesy::{LatLon, LocalFrame, NorthEast, wrap_two_pi};
 use crate::inputs::InputConfigError;
 use crate::model::Model;
 use crate::models::kinematic::KinematicInput;
-use crate::models::otter_twin::{ShaftSpeeds, idx, meas};
+use crate::models::otter_twin::{FAULTS, MEASUREMENTS, STATES, ShaftSpeeds, fault, idx, meas};
 use crate::predict::{PredictedPoint, predict};
 use crate::sample::{GnssFix, PropellerSpeeds, Side};
-use crate::trig;
 
 /// Why a measurement was not used. The estimate is unchanged after any.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
@@ -76,6 +75,14 @@ pub enum Rejection {
         /// How much older, s.
         by_s: f64,
     },
+    /// A time far from the vessel's timeline (beyond the longest gap ahead,
+    /// or farther back than a fix out of order), not yet confirmed by fixes
+    /// that agree with it.
+    #[error("time jumped {by_s} s")]
+    TimeJump {
+        /// How far from the last accepted fix, s (negative: back).
+        by_s: f64,
+    },
     /// A position jump faster than any vessel of this kind moves.
     #[error("position jumped {distance_m:.0} m in {dt_s:.2} s")]
     Jump {
@@ -97,6 +104,7 @@ impl Rejection {
             Rejection::OutOfRange { .. } => "out_of_range",
             Rejection::Duplicate { .. } => "duplicate",
             Rejection::TimeWentBackwards { .. } => "time_backwards",
+            Rejection::TimeJump { .. } => "time_jump",
             Rejection::Jump { .. } => "position_jump",
             Rejection::Estimator(_) => "estimator",
         }
@@ -113,10 +121,19 @@ pub struct GatingConfig {
     /// After this many consecutive jump rejections that agree with each
     /// other, the vessel really is there: restart from them.
     pub jumps_before_restart: u32,
-    /// A gap in fixes longer than this restarts the state estimate, s.
+    /// A gap in fixes longer than this starts a new track (the state
+    /// estimate restarts; what the twin learnt about the vessel is kept);
+    /// a fix older than the last accepted one by more than this is far
+    /// from the timeline, s.
     pub reinitialise_after_gap_s: f64,
+    /// A fix later than the last accepted one by more than this is far
+    /// from the vessel's timeline: refused until fixes that agree with it
+    /// confirm a new track, s.
+    pub max_gap_s: f64,
     /// Below this speed over ground the course is meaningless and masked, m/s.
     pub min_sog_for_course_mps: f64,
+    /// Fastest credible yaw rate, rad/s; a fix reporting more is refused.
+    pub max_yaw_rate_radps: f64,
 }
 
 impl Default for GatingConfig {
@@ -126,7 +143,9 @@ impl Default for GatingConfig {
             jump_slack_m: 25.0,
             jumps_before_restart: 5,
             reinitialise_after_gap_s: 30.0,
+            max_gap_s: 3600.0,
             min_sog_for_course_mps: 0.3,
+            max_yaw_rate_radps: 5.0,
         }
     }
 }
@@ -170,10 +189,21 @@ pub enum FaultSource {
 pub struct ThrusterEstimate {
     /// Estimated loss of effectiveness (raw: may leave [0, 1] slightly).
     pub loss: f64,
-    /// Its standard deviation.
+    /// Its standard deviation, with everything else the twin estimates
+    /// unknown (the other loss, the hull's damping): where the losses'
+    /// common part cannot be told from the hull's drag, this is as wide as
+    /// that ignorance.
     pub sigma: f64,
-    /// Whether the recent data can tell it.
+    /// Whether the recent data can tell the loss on its own.
     pub excited: bool,
+    /// The loss relative to the other propeller, `1 - (1 - loss) / (1 -
+    /// other's loss)`: what the yaw balance measures even where the losses'
+    /// common part is unknown.
+    pub relative_loss: f64,
+    /// Its standard deviation.
+    pub relative_sigma: f64,
+    /// Whether the recent data can tell the relative loss.
+    pub relative_excited: bool,
     /// The decision about it.
     pub decision: ThrusterDecision,
 }
@@ -196,6 +226,11 @@ pub struct FaultReport {
     /// losses are strongly correlated: their ratio is known far better than
     /// either.
     pub loss_covariance: [[f64; 2]; 2],
+    /// The extended twin's estimates of the relative errors of the
+    /// profile's surge damping, yaw damping, thrust coefficient and mass,
+    /// `[(value, sigma); 4]` (a hull 30 % draggier than its profile: surge
+    /// 0.3); `None` for the seed's method.
+    pub profile_errors: Option<[(f64, f64); 4]>,
 }
 
 impl FaultReport {
@@ -255,11 +290,11 @@ pub struct StepOutput {
     /// Status changes declared by this fix (alarms).
     pub changes: Vec<StatusChange>,
     /// The innovation of the reporting estimator (for residual analysis),
-    /// `[north, east, sog, cog, heading]` (heading 0 for the seed model), with
-    /// which were available.
-    pub innovation: [f64; 5],
+    /// `[north, east, sog, cog, heading, yaw rate]` (heading and yaw rate 0
+    /// for the seed model), with which were available.
+    pub innovation: [f64; MEASUREMENTS],
     /// Which innovation components were measured.
-    pub innovation_available: [bool; 5],
+    pub innovation_available: [bool; MEASUREMENTS],
 }
 
 /// One predicted point in user frames.
@@ -281,20 +316,70 @@ pub struct ForecastPoint {
 
 /// A calibration to save and restore: what the twin has learnt about the
 /// vessel, independent of where it is.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Calibration {
     /// Which estimator learnt it.
     pub source: FaultSource,
-    /// Fault estimate.
-    pub theta: [f64; 2],
-    /// Fault covariance (row-major 2x2).
-    pub theta_covariance: [f64; 4],
-    /// Held information per fault (anti-windup memory).
-    pub held_information: [f64; 2],
+    /// Fault estimate: the extended twin's `[port loss, starboard loss,
+    /// surge damping error, yaw damping error]`, or the seed method's input
+    /// faults `[theta_a, theta_r]`.
+    pub theta: Vec<f64>,
+    /// Fault covariance, row-major (`theta.len()` squared entries).
+    pub theta_covariance: Vec<f64>,
+    /// Held information per fault (the anti-windup memory).
+    pub held_information: Vec<f64>,
+    /// What the extended twin learnt of the water current and of its
+    /// heading sensor's offset.
+    pub surroundings: Option<Surroundings>,
     /// The decision per thruster.
     pub decisions: [ThrusterDecision; 2],
     /// Time of the last fix it was learnt from, s.
     pub time_s: f64,
+}
+
+impl Calibration {
+    /// The faults of an estimator with `P` of them, if this calibration has
+    /// that many.
+    fn learnt<const P: usize>(&self) -> Option<Learnt<P>> {
+        if self.theta.len() != P
+            || self.theta_covariance.len() != P * P
+            || self.held_information.len() != P
+        {
+            return None;
+        }
+        Some(Learnt {
+            theta: SVector::from_column_slice(&self.theta),
+            covariance: SMatrix::from_row_slice(&self.theta_covariance),
+            held_information: SVector::from_column_slice(&self.held_information),
+            surroundings: self.surroundings,
+        })
+    }
+
+    /// This calibration after `elapsed_s` without data: what was learnt is
+    /// kept, its uncertainty widened for what may have changed meanwhile
+    /// (the faults by their prior `fault_prior` spread over an hour, the
+    /// current by 0.5 m/s over ten minutes, the heading sensor's offset by
+    /// its prior over a day; each at most by its prior).
+    fn aged(
+        mut self,
+        elapsed_s: f64,
+        fault_prior: &[f64],
+        current_prior: f64,
+        bias_prior: f64,
+    ) -> Self {
+        let share = |over_s: f64| (elapsed_s.max(0.0) / over_s).min(1.0);
+        let p = self.theta.len();
+        for i in 0..p {
+            self.theta_covariance[i * p + i] +=
+                fault_prior.get(i).copied().unwrap_or(0.0) * share(3600.0);
+        }
+        if let Some(s) = &mut self.surroundings {
+            s.covariance[0][0] += current_prior * share(600.0);
+            s.covariance[1][1] += current_prior * share(600.0);
+            s.covariance[2][2] += bias_prior * share(86_400.0);
+        }
+        self
+    }
 }
 
 /// The seed's method as the twin runs it: its base, its inputs, and the
@@ -309,31 +394,15 @@ struct SeedEstimator {
     thruster_loss: [Option<f64>; 2],
 }
 
-/// The extended twin as the twin runs it: its base, the running estimate,
-/// and how far the heading has spread over the filter's memory.
+/// The extended twin as the twin runs it: its base and the running
+/// estimate.
 #[derive(Debug, Clone)]
 struct KineticEstimator {
     base: KineticBase,
-    state: Option<AekfState<8, 5, 2>>,
-    last_report: Option<StepReport<5, 2>>,
-    last_available: [bool; 5],
+    state: Option<KineticState>,
+    last_report: Option<KineticReport>,
+    last_available: [bool; MEASUREMENTS],
     last_input: Option<ShaftSpeeds>,
-    /// Exponentially weighted mean of the unit heading vector over the
-    /// filter's memory (see [`KineticConfig::min_heading_spread`]).
-    heading_mean: [f64; 2],
-}
-
-impl KineticEstimator {
-    /// Moves the heading's running mean towards the estimate after a step
-    /// of `dt_s`.
-    fn track_heading(&mut self, dt_s: f64) {
-        let Some(state) = &self.state else { return };
-        let w = 1.0 - self.base.filter().lambda(dt_s);
-        let (sin_h, cos_h) = trig::sin_cos(state.x[idx::PSI]);
-        let m = &mut self.heading_mean;
-        m[0] += w * (cos_h - m[0]);
-        m[1] += w * (sin_h - m[1]);
-    }
 }
 
 /// What [`VesselTwin::on_gnss`] can have changed when a step fails: the
@@ -343,8 +412,9 @@ impl KineticEstimator {
 /// updated only after every fallible point.
 struct StepUndo {
     frame: Option<LocalFrame>,
+    restored: Option<Option<Calibration>>,
     seed: SeedEstimator,
-    kinetic_state: Option<Option<AekfState<8, 5, 2>>>,
+    kinetic_state: Option<Option<KineticState>>,
     propellers: ShaftAccumulator,
     last_propeller_time_s: Option<f64>,
 }
@@ -353,6 +423,7 @@ impl StepUndo {
     fn of(twin: &VesselTwin, restart: bool) -> Self {
         Self {
             frame: twin.frame,
+            restored: restart.then(|| twin.restored.clone()),
             seed: twin.seed.clone(),
             kinetic_state: restart.then_some(twin.kinetic.state),
             propellers: twin.propellers,
@@ -362,6 +433,9 @@ impl StepUndo {
 
     fn restore(self, twin: &mut VesselTwin) {
         twin.frame = self.frame;
+        if let Some(restored) = self.restored {
+            twin.restored = restored;
+        }
         twin.seed = self.seed;
         if let Some(state) = self.kinetic_state {
             twin.kinetic.state = state;
@@ -420,9 +494,8 @@ impl VesselTwin {
                 )?,
                 state: None,
                 last_report: None,
-                last_available: [false; 5],
+                last_available: [false; MEASUREMENTS],
                 last_input: None,
-                heading_mean: [0.0; 2],
             },
             config,
             frame: None,
@@ -495,6 +568,7 @@ impl VesselTwin {
             ("sog_mps", fix.sog_mps),
             ("cog_rad", fix.cog_rad),
             ("heading_rad", fix.heading_rad),
+            ("yaw_rate_radps", fix.yaw_rate_radps),
             ("hdop", fix.hdop),
         ];
         for (field, v) in finite {
@@ -530,6 +604,24 @@ impl VesselTwin {
                 value: s,
             });
         }
+        // An angle beyond a turn either way is not a course or heading in
+        // radians (most likely degrees).
+        let tau = std::f64::consts::TAU;
+        for (field, angle) in [("cog_rad", fix.cog_rad), ("heading_rad", fix.heading_rad)] {
+            if let Some(a) = angle
+                && !(-tau..=2.0 * tau).contains(&a)
+            {
+                return Err(Rejection::OutOfRange { field, value: a });
+            }
+        }
+        if let Some(r) = fix.yaw_rate_radps
+            && r.abs() > self.config.gating.max_yaw_rate_radps
+        {
+            return Err(Rejection::OutOfRange {
+                field: "yaw_rate_radps",
+                value: r,
+            });
+        }
         if let Some(h) = fix.hdop
             && h <= 0.0
         {
@@ -542,8 +634,9 @@ impl VesselTwin {
             if fix.time_s == t {
                 return Err(Rejection::Duplicate { time_s: t });
             }
-            // Far back is a new track (a restarted source, a looping replay):
-            // the state restarts. A little back is an out-of-order fix.
+            // A little back is an out-of-order fix. Far back may be a new
+            // track (a restarted source, a looping replay), once confirmed
+            // (`on_gnss`).
             if fix.time_s < t && fix.time_s >= t - self.config.gating.reinitialise_after_gap_s {
                 return Err(Rejection::TimeWentBackwards {
                     by_s: t - fix.time_s,
@@ -567,30 +660,31 @@ impl VesselTwin {
         let ne = frame.to_local(fix.position);
         let g = self.config.gating;
 
-        // Jump test against the last accepted fix.
+        // Time and position against the last accepted fix.
         let mut restart = false;
         if let Some((t, last)) = self.last_fix {
             let dt = fix.time_s - t;
             let distance = (ne.north_m - last.north_m).hypot(ne.east_m - last.east_m);
-            if dt.abs() > g.reinitialise_after_gap_s {
-                restart = true;
-            } else if distance > g.max_speed_mps * dt + g.jump_slack_m {
-                // Consecutive jumps that agree with each other mean the vessel
-                // really is there (or the receiver re-converged): restart.
-                let consistent = self.jump_run.last().is_none_or(|(tj, pj)| {
-                    let d = (ne.north_m - pj.north_m).hypot(ne.east_m - pj.east_m);
-                    d <= g.max_speed_mps * (fix.time_s - tj) + g.jump_slack_m
-                });
-                if !consistent {
-                    self.jump_run.clear();
-                }
-                if (self.jump_run.len() as u32) + 1 < g.jumps_before_restart {
+            let far_in_time = dt > g.max_gap_s || dt < -g.reinitialise_after_gap_s;
+            if far_in_time || distance > g.max_speed_mps * dt.max(0.0) + g.jump_slack_m {
+                // A fix far from the vessel's timeline (a wild time stamp, a
+                // source restarted in the past) or a position jump is
+                // obeyed only once fixes that agree with each other confirm
+                // it: one wild fix changes nothing.
+                if !self.confirms_new_track(fix.time_s, ne) {
                     self.note_jump(fix.time_s, ne);
-                    return Err(Rejection::Jump {
-                        distance_m: distance,
-                        dt_s: dt,
+                    return Err(if far_in_time {
+                        Rejection::TimeJump { by_s: dt }
+                    } else {
+                        Rejection::Jump {
+                            distance_m: distance,
+                            dt_s: dt,
+                        }
                     });
                 }
+                restart = true;
+            } else if dt > g.reinitialise_after_gap_s {
+                // A real gap: a new track.
                 restart = true;
             }
         }
@@ -602,6 +696,8 @@ impl VesselTwin {
         let undo = StepUndo::of(self, restart);
         self.frame = Some(frame);
         if restart {
+            // A new track keeps what the twin learnt about the vessel.
+            self.restored = self.carried_over(fix.time_s);
             self.seed.state = None;
             self.kinetic.state = None;
             if self.last_fix.is_some_and(|(t, _)| fix.time_s < t) {
@@ -622,7 +718,26 @@ impl VesselTwin {
         Ok(self.output(fix.time_s, changes))
     }
 
-    /// Records a rejected jump so that a run of consistent ones can restart
+    /// Whether `time_s`, `ne` is the last of a run of refused fixes that
+    /// agree with each other (each after the one before by at most the gap
+    /// that starts a new track, and no farther from it than a vessel
+    /// moves) long enough to start a new track.
+    fn confirms_new_track(&mut self, time_s: f64, ne: NorthEast) -> bool {
+        let g = self.config.gating;
+        let consistent = self.jump_run.last().is_none_or(|(tj, pj)| {
+            let dt = time_s - tj;
+            let d = (ne.north_m - pj.north_m).hypot(ne.east_m - pj.east_m);
+            dt > 0.0
+                && dt <= g.reinitialise_after_gap_s
+                && d <= g.max_speed_mps * dt + g.jump_slack_m
+        });
+        if !consistent {
+            self.jump_run.clear();
+        }
+        (self.jump_run.len() as u32) + 1 >= g.jumps_before_restart
+    }
+
+    /// Records a refused jump so that a run of consistent ones can restart
     /// the estimate. Bookkeeping only: the estimate is untouched.
     fn note_jump(&mut self, time_s: f64, ne: NorthEast) {
         self.jump_run.push((time_s, ne));
@@ -649,11 +764,18 @@ impl VesselTwin {
 
         // The decision, from the extended twin where it runs.
         let faults = self.fault_report(fix.time_s);
-        let loss = [faults.thrusters[0].loss, faults.thrusters[1].loss];
-        let sigma = [faults.thrusters[0].sigma, faults.thrusters[1].sigma];
-        let excited = [faults.thrusters[0].excited, faults.thrusters[1].excited];
         Ok(match faults.source {
-            FaultSource::Kinetic => self.decider.update(fix.time_s, loss, sigma, excited),
+            FaultSource::Kinetic => {
+                let evidence = faults.thrusters.map(|t| LossEvidence {
+                    loss: t.loss,
+                    sigma: t.sigma,
+                    excited: t.excited,
+                    relative_loss: t.relative_loss,
+                    relative_sigma: t.relative_sigma,
+                    relative_excited: t.relative_excited,
+                });
+                self.decider.update(fix.time_s, evidence)
+            }
             FaultSource::SeedMethod => Vec::new(),
         })
     }
@@ -666,7 +788,7 @@ impl VesselTwin {
         dt: Option<f64>,
         restarted: bool,
     ) -> Result<(), Rejection> {
-        let restored = self.restored_faults(FaultSource::SeedMethod);
+        let restored = self.restored_learnt::<2>(FaultSource::SeedMethod);
         let seed = &mut self.seed;
         let derived = seed
             .inputs
@@ -691,7 +813,7 @@ impl VesselTwin {
                 );
             }
             _ => {
-                seed.state = Some(seed.base.prior(fix, restored));
+                seed.state = Some(seed.base.prior(fix, restored.as_ref()));
             }
         }
         Ok(())
@@ -710,7 +832,7 @@ impl VesselTwin {
             self.kinetic.state = None;
             return Ok(());
         };
-        let restored = self.restored_faults(FaultSource::Kinetic);
+        let restored = self.restored_learnt::<FAULTS>(FaultSource::Kinetic);
         let kinetic = &mut self.kinetic;
         match (&mut kinetic.state, dt) {
             (Some(state), Some(dt)) => {
@@ -720,83 +842,134 @@ impl VesselTwin {
                     .map_err(Rejection::Estimator)?;
                 kinetic.last_report = Some(report);
                 kinetic.last_available = kinetic.base.measurement(fix).available;
-                kinetic.track_heading(dt);
             }
             _ => {
-                let state = kinetic.base.prior(fix, restored);
-                let (sin_h, cos_h) = trig::sin_cos(state.x[idx::PSI]);
-                kinetic.heading_mean = [cos_h, sin_h];
-                kinetic.state = Some(state);
+                kinetic.state = Some(kinetic.base.prior(fix, restored.as_ref()));
             }
         }
         kinetic.last_input = Some(u);
         Ok(())
     }
 
-    /// The fault prior of a restored calibration learnt by `source`.
-    fn restored_faults(&self, source: FaultSource) -> Option<FaultPrior<2>> {
+    /// What a restored calibration learnt by `source` gives an estimator
+    /// with `P` faults.
+    fn restored_learnt<const P: usize>(&self, source: FaultSource) -> Option<Learnt<P>> {
         self.restored
+            .as_ref()
             .filter(|c| c.source == source)
-            .map(|c| FaultPrior {
-                theta: Vector2::new(c.theta[0], c.theta[1]),
-                covariance: SMatrix::<f64, 2, 2>::new(
-                    c.theta_covariance[0],
-                    c.theta_covariance[1],
-                    c.theta_covariance[2],
-                    c.theta_covariance[3],
-                ),
-            })
+            .and_then(Calibration::learnt)
     }
 
     /// Restores a saved calibration: the next estimator started takes its
-    /// fault estimate and covariance from it, and the decisions hold.
+    /// faults (estimate, covariance, anti-windup memory) and, for the
+    /// extended twin, the current and the heading sensor's offset from it,
+    /// and the decisions hold. A calibration with a different number of
+    /// faults (from another version of the twin) restores only the
+    /// decisions.
     pub fn restore(&mut self, calibration: Calibration) {
-        self.restored = Some(calibration);
         for side in Side::BOTH {
             self.decider
                 .restore(side, calibration.decisions[side.index()]);
         }
-        let Some(prior) = self.restored_faults(calibration.source) else {
-            return;
-        };
         match calibration.source {
             FaultSource::Kinetic => {
-                if let Some(st) = &mut self.kinetic.state {
-                    st.theta = prior.theta;
-                    st.s = prior.covariance;
+                if let (Some(st), Some(l)) =
+                    (&mut self.kinetic.state, calibration.learnt::<FAULTS>())
+                {
+                    st.theta = l.theta;
+                    st.s = l.covariance;
+                    st.held_information = l.held_information;
                 }
             }
             FaultSource::SeedMethod => {
-                if let Some(st) = &mut self.seed.state {
-                    st.theta = prior.theta;
-                    st.s = prior.covariance;
+                if let (Some(st), Some(l)) = (&mut self.seed.state, calibration.learnt::<2>()) {
+                    st.theta = l.theta;
+                    st.s = l.covariance;
+                    st.held_information = l.held_information;
                 }
             }
         }
+        self.restored = Some(calibration);
     }
 
     /// What the twin has learnt, to save.
     pub fn calibration(&self) -> Option<Calibration> {
         let time_s = self.last_fix.map(|(t, _)| t)?;
-        let (source, theta, s, held) = if let Some(k) = &self.kinetic.state {
-            (FaultSource::Kinetic, k.theta, k.s, k.held_information)
-        } else if let Some(r) = self.restored {
-            return Some(r);
+        let flat = |m: &[f64]| m.to_vec();
+        let (source, theta, covariance, held, surroundings) = if let Some(k) = &self.kinetic.state {
+            let (cn, ce, b) = (idx::CURRENT_NORTH, idx::CURRENT_EAST, idx::HEADING_BIAS);
+            let slots = [cn, ce, b];
+            let surroundings = Surroundings {
+                current_mps: [k.x[cn], k.x[ce]],
+                heading_bias_rad: k.x[b],
+                covariance: std::array::from_fn(|i| {
+                    std::array::from_fn(|j| k.p[(slots[i], slots[j])])
+                }),
+            };
+            (
+                FaultSource::Kinetic,
+                flat(k.theta.as_slice()),
+                flat(k.s.transpose().as_slice()),
+                flat(k.held_information.as_slice()),
+                Some(surroundings),
+            )
+        } else if let Some(r) = &self.restored {
+            return Some(r.clone());
         } else {
             let st = self.seed.state.as_ref()?;
-            (FaultSource::SeedMethod, st.theta, st.s, st.held_information)
+            (
+                FaultSource::SeedMethod,
+                flat(st.theta.as_slice()),
+                flat(st.s.transpose().as_slice()),
+                flat(st.held_information.as_slice()),
+                None,
+            )
         };
         Some(Calibration {
             source,
-            theta: [theta[0], theta[1]],
-            theta_covariance: [s[(0, 0)], s[(0, 1)], s[(1, 0)], s[(1, 1)]],
-            held_information: [held[0], held[1]],
+            theta,
+            theta_covariance: covariance,
+            held_information: held,
+            surroundings,
             decisions: [
                 self.decider.decision(Side::Port),
                 self.decider.decision(Side::Starboard),
             ],
             time_s,
         })
+    }
+
+    /// What the twin carries into a new track starting at `time_s`: what it
+    /// has learnt (or had restored), its uncertainty widened for the time
+    /// that passed.
+    fn carried_over(&self, time_s: f64) -> Option<Calibration> {
+        let c = self.calibration()?;
+        let elapsed_s = (time_s - c.time_s).abs();
+        let k = &self.config.kinetic;
+        let fault_prior: Vec<f64> = match c.source {
+            FaultSource::Kinetic => k
+                .filter
+                .initial_fault_covariance
+                .diagonal()
+                .iter()
+                .copied()
+                .collect(),
+            FaultSource::SeedMethod => self
+                .config
+                .seed
+                .filter
+                .initial_fault_covariance
+                .diagonal()
+                .iter()
+                .copied()
+                .collect(),
+        };
+        Some(c.aged(
+            elapsed_s,
+            &fault_prior,
+            k.initial_current_sigma_mps.powi(2),
+            k.initial_heading_bias_sigma_rad.powi(2),
+        ))
     }
 
     /// The current fault picture at `time_s`.
@@ -806,26 +979,28 @@ impl VesselTwin {
             .state
             .map(|s| s.theta)
             .unwrap_or_else(SVector::zeros);
-        let loss_covariance = match &self.kinetic.state {
-            Some(k) => [[k.s[(0, 0)], k.s[(0, 1)]], [k.s[(1, 0)], k.s[(1, 1)]]],
-            None => [[f64::NAN; 2]; 2],
-        };
-        let (source, thrusters) = match &self.kinetic.state {
+        let (source, thrusters, loss_covariance, profile_errors) = match &self.kinetic.state {
             Some(k) => {
-                let sigma = k.fault_sigma();
-                let spread_ok = !self.config.kinetic.estimate_current
-                    || self.heading_spread() >= self.config.kinetic.min_heading_spread;
-                let excited = k
-                    .excited(self.config.kinetic.filter.excitation_sigma)
-                    .map(|e| e && spread_ok);
+                let r = self.kinetic.base.losses(k);
+                let damping_of = |i: usize| (k.theta[i], k.s[(i, i)].max(0.0).sqrt());
                 (
                     FaultSource::Kinetic,
                     std::array::from_fn(|i| ThrusterEstimate {
-                        loss: k.theta[i],
-                        sigma: sigma[i],
-                        excited: excited[i],
+                        loss: r.loss[i],
+                        sigma: r.sigma[i],
+                        excited: r.excited[i],
+                        relative_loss: r.relative_loss[i],
+                        relative_sigma: r.relative_sigma[i],
+                        relative_excited: r.relative_excited[i],
                         decision: self.decider.decision(Side::BOTH[i]),
                     }),
+                    r.covariance,
+                    Some([
+                        damping_of(fault::SURGE_DAMPING),
+                        damping_of(fault::YAW_DAMPING),
+                        damping_of(fault::THRUST),
+                        damping_of(fault::MASS),
+                    ]),
                 )
             }
             None => (
@@ -834,11 +1009,16 @@ impl VesselTwin {
                     loss: self.seed.thruster_loss[i].unwrap_or(f64::NAN),
                     sigma: f64::NAN,
                     excited: self.seed.thruster_loss[i].is_some(),
+                    relative_loss: f64::NAN,
+                    relative_sigma: f64::NAN,
+                    relative_excited: false,
                     decision: ThrusterDecision {
                         status: ThrusterStatus::NotExcited,
                         onset_time_s: None,
                     },
                 }),
+                [[f64::NAN; 2]; 2],
+                None,
             ),
         };
         FaultReport {
@@ -851,15 +1031,8 @@ impl VesselTwin {
             thrusters,
             seed_input_faults: seed_theta,
             loss_covariance,
+            profile_errors,
         }
-    }
-
-    /// How much the heading has varied over the extended twin's memory:
-    /// `1 - |mean unit heading vector|` (0 on a straight line, 1 - 2/pi for
-    /// a half circle).
-    pub fn heading_spread(&self) -> f64 {
-        let m = self.kinetic.heading_mean;
-        1.0 - m[0].hypot(m[1])
     }
 
     /// The seed method's per-thruster values at the last fix (step 4).
@@ -873,7 +1046,7 @@ impl VesselTwin {
     }
 
     /// The extended twin's filter state, if running.
-    pub fn kinetic_state(&self) -> Option<&AekfState<8, 5, 2>> {
+    pub fn kinetic_state(&self) -> Option<&KineticState> {
         self.kinetic.state.as_ref()
     }
 
@@ -960,11 +1133,12 @@ impl VesselTwin {
                                 r.innovation[2],
                                 r.innovation[3],
                                 0.0,
+                                0.0,
                             ],
-                            [a[0], a[1], a[2], a[3], false],
+                            [a[0], a[1], a[2], a[3], false, false],
                         )
                     }
-                    None => ([0.0; 5], [false; 5]),
+                    None => ([0.0; MEASUREMENTS], [false; MEASUREMENTS]),
                 },
             };
         StepOutput {
@@ -1008,7 +1182,7 @@ impl VesselTwin {
         let points = predict(model, k, &k.process_noise_density, t0, inputs);
         points
             .iter()
-            .map(|p: &PredictedPoint<8>| {
+            .map(|p: &PredictedPoint<STATES>| {
                 let obs = model.observe(&p.x);
                 let local = NorthEast {
                     north_m: p.x[idx::NORTH],
@@ -1086,6 +1260,7 @@ mod tests {
             sog_mps: Some(1.5),
             cog_rad: Some(0.0),
             heading_rad: None,
+            yaw_rate_radps: None,
             hdop: None,
         }
     }
@@ -1106,17 +1281,63 @@ mod tests {
             twin.on_gnss(&fix(last - 1.0, 14.0)),
             Err(Rejection::TimeWentBackwards { .. })
         ));
-        // A looping replay starting over, 90 s back in time: a new track.
+        // A looping replay starting over, 90 s back in time: a new track,
+        // once five fixes that agree with each other confirm it.
+        for k in 0..4 {
+            assert!(matches!(
+                twin.on_gnss(&fix(910.0 + 0.2 * k as f64, 0.3 * k as f64)),
+                Err(Rejection::TimeJump { .. })
+            ));
+        }
         let out = twin
-            .on_gnss(&fix(1000.0 - 90.0, 0.0))
-            .expect("a new track restarts");
-        assert_eq!(out.state.time_s, 910.0);
-        twin.on_gnss(&fix(910.2, 0.3)).unwrap();
+            .on_gnss(&fix(910.8, 1.2))
+            .expect("a confirmed new track restarts");
+        assert_eq!(out.state.time_s, 910.8);
+        twin.on_gnss(&fix(911.0, 1.5)).unwrap();
         // A jump of a kilometre in 0.2 s is refused.
         assert!(matches!(
-            twin.on_gnss(&fix(910.4, 1000.0)),
+            twin.on_gnss(&fix(911.2, 1000.0)),
             Err(Rejection::Jump { .. })
         ));
+    }
+
+    /// One fix dated far ahead (or an hour back) is refused and changes
+    /// nothing; a real gap starts a new track that keeps what was learnt.
+    #[test]
+    fn a_wild_time_stamp_changes_nothing_and_a_gap_keeps_what_was_learnt() {
+        let mut twin = twin_with_both_estimators(300, false);
+        let before = format!("{twin:?}");
+        let learnt = twin.calibration().expect("a calibration");
+        let last = 1000.0 + 0.2 * 299.0;
+        for wild in [last + 73.0 * 365.25 * 86_400.0, last - 3600.0] {
+            assert!(matches!(
+                twin.on_gnss(&fix(wild, 0.3 * 300.0)),
+                Err(Rejection::TimeJump { .. })
+            ));
+        }
+        // Bookkeeping of the refused fixes aside, nothing changed.
+        twin.jump_run.clear();
+        assert_eq!(format!("{twin:?}"), before);
+        // A two-minute gap: a new track, the faults carried over with
+        // their estimate and anti-windup memory, their uncertainty wider.
+        let after_gap = last + 120.0;
+        twin.on_propellers(&PropellerSpeeds {
+            time_s: after_gap - 0.1,
+            port_radps: 70.0,
+            starboard_radps: 70.0,
+        })
+        .unwrap();
+        twin.on_gnss(&fix(after_gap, 0.3 * 300.0 + 180.0)).unwrap();
+        let carried = twin.calibration().expect("a calibration");
+        assert_eq!(carried.theta, learnt.theta);
+        assert_eq!(carried.held_information, learnt.held_information);
+        let p = carried.theta.len();
+        for i in 0..p {
+            assert!(
+                carried.theta_covariance[i * p + i] > learnt.theta_covariance[i * p + i],
+                "fault {i}"
+            );
+        }
     }
 
     /// Both estimators running after `fixes` fixes, with propeller speeds

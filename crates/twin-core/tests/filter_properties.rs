@@ -3,7 +3,7 @@
 //! the sample interval, symmetric positive definite covariances over a million
 //! steps, and errors as values for everything else.
 
-use nalgebra::{SMatrix, Vector2, Vector4};
+use nalgebra::{SMatrix, SVector, Vector2, Vector4};
 use proptest::prelude::*;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -20,6 +20,7 @@ fn config(q_density: Vector4<f64>, r_sigma: Vector4<f64>, tau_s: f64) -> AekfCon
         process_noise_density: SMatrix::from_diagonal(&q_density),
         measurement_noise: SMatrix::from_diagonal(&r_sigma.component_mul(&r_sigma)),
         forgetting_time_constant_s: tau_s,
+        fault_memory_factor: SVector::repeat(1.0),
         initial_fault_covariance: SMatrix::identity() * 0.1,
         anti_windup_ratio: 0.1,
         excitation_sigma: 0.02,

@@ -1,14 +1,16 @@
 //! The twin's forecast: after calibration, open-loop predictions whose stated
 //! uncertainty bands contain the truth at their stated rates.
 
-use nalgebra::{SMatrix, Vector2, Vector4};
+use nalgebra::{SMatrix, SVector, Vector2, Vector4};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand_distr::{Distribution, Normal};
 use twin_core::aekf::{Aekf, AekfConfig, AekfState};
 use twin_core::geodesy::wrap_pi;
 use twin_core::model::Measurement;
+use twin_core::model::Model;
 use twin_core::models::kinematic::{KinematicInput, KinematicModel};
+use twin_core::models::otter_twin::{FAULTS, MEASUREMENTS, OtterTwin, STATES, ShaftSpeeds};
 use twin_core::predict::predict;
 
 fn input_at(t: f64) -> KinematicInput {
@@ -40,6 +42,7 @@ fn forecast_coverage(propagation: Propagation, calibration_steps: usize) -> (f64
         process_noise_density: SMatrix::from_diagonal(&q),
         measurement_noise: SMatrix::from_diagonal(&r.component_mul(&r)),
         forgetting_time_constant_s: 60.0,
+        fault_memory_factor: SVector::repeat(1.0),
         initial_fault_covariance: SMatrix::identity() * 0.1,
         anti_windup_ratio: 0.1,
         excitation_sigma: 0.02,
@@ -173,7 +176,7 @@ fn fault_uncertainty_propagates_exactly() {
         process_noise_density: SMatrix::zeros(),
         measurement_noise: SMatrix::identity(),
         held_information: Vector2::zeros(),
-        recent_information: Vector2::zeros(),
+        recent_information: SMatrix::zeros(),
         steps: 0,
     };
     state.x[3] = 0.1;
@@ -204,39 +207,42 @@ fn fault_uncertainty_propagates_exactly() {
 /// The extended twin's model with the filter's sub-step Jacobian chain in
 /// its forecasts too (the trait's default `forecast_transition`): the
 /// reference the forecast's cheaper midpoint Jacobians are held to.
-struct SubStepChain(twin_core::models::otter_twin::OtterTwin<8>);
+struct SubStepChain(OtterTwin);
 
-impl twin_core::model::Model<8, 5, 2> for SubStepChain {
-    type Input = twin_core::models::otter_twin::ShaftSpeeds;
+impl Model<STATES, MEASUREMENTS, FAULTS> for SubStepChain {
+    type Input = ShaftSpeeds;
 
     fn transition(
         &self,
-        x: &nalgebra::SVector<f64, 8>,
+        x: &nalgebra::SVector<f64, STATES>,
         input: &Self::Input,
-        theta: &nalgebra::SVector<f64, 2>,
+        theta: &nalgebra::SVector<f64, FAULTS>,
         dt_s: f64,
-    ) -> twin_core::model::Transition<8, 2> {
+    ) -> twin_core::model::Transition<STATES, FAULTS> {
         self.0.transition(x, input, theta, dt_s)
     }
 
-    fn observe(&self, x: &nalgebra::SVector<f64, 8>) -> twin_core::model::Observation<8, 5> {
+    fn observe(
+        &self,
+        x: &nalgebra::SVector<f64, STATES>,
+    ) -> twin_core::model::Observation<STATES, MEASUREMENTS> {
         self.0.observe(x)
     }
 
-    fn measurement_angles(&self) -> [bool; 5] {
-        twin_core::model::Model::<8, 5, 2>::measurement_angles(&self.0)
+    fn measurement_angles(&self) -> [bool; MEASUREMENTS] {
+        self.0.measurement_angles()
     }
 
-    fn state_angles(&self) -> [bool; 8] {
-        twin_core::model::Model::<8, 5, 2>::state_angles(&self.0)
+    fn state_angles(&self) -> [bool; STATES] {
+        self.0.state_angles()
     }
 
-    fn state_names(&self) -> [&'static str; 8] {
-        twin_core::model::Model::<8, 5, 2>::state_names(&self.0)
+    fn state_names(&self) -> [&'static str; STATES] {
+        self.0.state_names()
     }
 
-    const TRANSITION_PATTERN: twin_core::linalg::Pattern<8, 8> =
-        <twin_core::models::otter_twin::OtterTwin<8> as twin_core::model::Model<8, 5, 2>>::TRANSITION_PATTERN;
+    const TRANSITION_PATTERN: twin_core::linalg::Pattern<STATES, STATES> =
+        <OtterTwin as Model<STATES, MEASUREMENTS, FAULTS>>::TRANSITION_PATTERN;
 }
 
 /// The extended twin's forecast takes its 1 s steps' Jacobians from the
@@ -246,15 +252,14 @@ impl twin_core::model::Model<8, 5, 2> for SubStepChain {
 /// within 1 % of the chain's at every point, and the states are the same.
 #[test]
 fn extended_forecast_bands_match_the_filters_sub_step_chain() {
-    use twin_core::model::Model;
-    use twin_core::models::otter_twin::{OtterTwin, ShaftSpeeds, idx};
+    use twin_core::models::otter_twin::idx;
     use twin_core::twin::KineticConfig;
 
     let config = KineticConfig::otter();
-    let model = OtterTwin::<8>::new(config.params);
+    let model = OtterTwin::new(config.params);
     let chain = SubStepChain(model);
     let filter = Aekf::new(model, config.filter).unwrap();
-    let theta_true = Vector2::new(0.2, 0.0);
+    let theta_true = nalgebra::SVector::<f64, FAULTS>::from([0.2, 0.0, 0.0, 0.0, 0.0, 0.0]);
     for (name, shafts) in [
         (
             "gentle turn",
@@ -272,13 +277,13 @@ fn extended_forecast_bands_match_the_filters_sub_step_chain() {
         ),
     ] {
         // 120 s of exact fixes at 5 Hz from the model itself, to calibrate.
-        let mut truth = nalgebra::SVector::<f64, 8>::zeros();
+        let mut truth = nalgebra::SVector::<f64, STATES>::zeros();
         truth[idx::U] = 1.0;
         let mut est = AekfState::new(
             &config.filter,
-            nalgebra::SVector::<f64, 8>::zeros(),
+            nalgebra::SVector::<f64, STATES>::zeros(),
             SMatrix::identity() * 0.5,
-            Vector2::zeros(),
+            nalgebra::SVector::zeros(),
         );
         for _ in 0..600 {
             truth = model.propagate(&truth, &shafts, &theta_true, 0.2);

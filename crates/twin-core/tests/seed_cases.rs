@@ -6,7 +6,7 @@
 //! tests hold is the filter's recursion, its tuning as a time constant, and its
 //! anti-windup.
 
-use nalgebra::{SMatrix, Vector2, Vector4};
+use nalgebra::{SMatrix, SVector, Vector2, Vector4};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand_distr::{Distribution, Normal};
@@ -22,6 +22,7 @@ fn seed_config(dt_s: f64) -> AekfConfig<4, 4, 2> {
         process_noise_density: SMatrix::identity() * (0.01 / dt_s),
         measurement_noise: SMatrix::identity() * 0.04,
         forgetting_time_constant_s: -dt_s / 0.995_f64.ln(),
+        fault_memory_factor: SVector::repeat(1.0),
         initial_fault_covariance: SMatrix::identity() * 0.1,
         anti_windup_ratio: 0.1,
         excitation_sigma: 0.02,

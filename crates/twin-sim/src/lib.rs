@@ -49,11 +49,12 @@ pub mod sensors;
 pub mod sim;
 
 pub use guidance::WaypointPass;
-pub use otter::{OtterParams, hoerner_cd_2d};
+pub use otter::{OtterParams, VesselScales, hoerner_cd_2d};
 pub use scenario::{
     ControlSpec, CurrentSpec, DisturbanceSpec, GnssSpec, HeadingSpec, InitialSpec, LeverArm,
     ManualCommand, ManualSpec, Origin, PathSpec, Plan, PropellerSensorSpec, PropellerSpec,
-    PropellersSpec, Scenario, ScenarioError, SensorsSpec, Waypoint, WindSpec,
+    PropellersSpec, Scenario, ScenarioError, SensorsSpec, VesselSpec, Waypoint, WindSpec,
+    YawRateSpec,
 };
-pub use sensors::{HeadingSample, SensorEvent, radps_to_rpm};
+pub use sensors::{HeadingSample, SensorEvent, YawRateSample, radps_to_rpm};
 pub use sim::{SimRun, TruthSample, run_plan, simulate};

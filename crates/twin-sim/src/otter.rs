@@ -123,6 +123,8 @@ pub struct OtterParams {
     pub shaft_min_radps: f64,
     /// Time constant of the first-order shaft response, s.
     pub shaft_time_constant_s: f64,
+    /// Factor on the cross-flow drag (1 for the Otter).
+    pub crossflow_scale: f64,
 }
 
 impl Default for OtterParams {
@@ -164,11 +166,59 @@ impl Default for OtterParams {
             shaft_max_radps: 103.9,
             shaft_min_radps: -101.7,
             shaft_time_constant_s: 0.1,
+            crossflow_scale: 1.0,
         }
     }
 }
 
+/// Scale factors on a vessel's numbers, each positive (1 = unchanged).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VesselScales {
+    /// Rigid-body mass and inertia.
+    pub mass: f64,
+    /// Added mass and inertia.
+    pub added_mass: f64,
+    /// Linear surge damping.
+    pub surge_damping: f64,
+    /// Linear sway damping.
+    pub sway_damping: f64,
+    /// Linear and quadratic yaw damping.
+    pub yaw_damping: f64,
+    /// Cross-flow drag.
+    pub crossflow_drag: f64,
+    /// Thrust coefficients, ahead and astern, both propellers.
+    pub thrust: f64,
+}
+
 impl OtterParams {
+    /// These parameters with `scales` applied: the mass matrix as its rigid
+    /// part (`m`, `m x_g`, the inertia about the origin) times the mass scale
+    /// plus its added part times the added-mass scale; the damping
+    /// derivatives, the cross-flow drag (through the hull's drag-bearing
+    /// draft) and both thrust coefficients times theirs. The shaft limits
+    /// are kept: a stronger propeller gives more thrust at the same speed.
+    pub fn scaled(&self, scales: &VesselScales) -> Self {
+        let added = Matrix3::from_diagonal(&Vector3::new(
+            self.added_mass_surge_kg,
+            self.added_mass_sway_kg,
+            self.added_inertia_yaw_kgm2,
+        ));
+        let rigid = self.mass_matrix - added;
+        let mut p = self.clone();
+        p.mass_kg *= scales.mass;
+        p.mass_matrix = rigid * scales.mass + added * scales.added_mass;
+        p.added_mass_surge_kg *= scales.added_mass;
+        p.added_mass_sway_kg *= scales.added_mass;
+        p.added_inertia_yaw_kgm2 *= scales.added_mass;
+        p.x_u_n_per_mps *= scales.surge_damping;
+        p.y_v_n_per_mps *= scales.sway_damping;
+        p.n_r_nm_per_radps *= scales.yaw_damping;
+        p.crossflow_scale *= scales.crossflow_drag;
+        p.thrust_coeff_ahead_n_per_radps2 *= scales.thrust;
+        p.thrust_coeff_astern_n_per_radps2 *= scales.thrust;
+        p
+    }
+
     /// Thrust of one healthy propeller at shaft speed `n_radps` (saturated to
     /// the shaft's limits), N. Positive pushes the craft ahead.
     pub fn thrust_n(&self, n_radps: f64) -> f64 {
@@ -303,7 +353,7 @@ impl OtterModel {
             .mass_matrix
             .try_inverse()
             .unwrap_or_else(Matrix3::zeros);
-        let crossflow_cd = params.crossflow_drag_coefficient();
+        let crossflow_cd = params.crossflow_drag_coefficient() * params.crossflow_scale;
         Self {
             params,
             mass_inverse,

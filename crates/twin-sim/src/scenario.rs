@@ -20,8 +20,8 @@ use twin_core::sample::RADPS_PER_RPM;
 use crate::control::AutopilotTuning;
 use crate::disturbance::{DisturbanceSettings, UPDATES_PER_CORRELATION_TIME};
 use crate::environment::{CurrentModel, WindModel};
-use crate::otter::OtterParams;
-use crate::sensors::{GnssSettings, HeadingSettings, PropellerSettings};
+use crate::otter::{OtterParams, VesselScales};
+use crate::sensors::{GnssSettings, HeadingSettings, PropellerSettings, YawRateSettings};
 
 /// Why a scenario cannot be loaded or run.
 #[derive(Debug, thiserror::Error)]
@@ -111,6 +111,47 @@ pub struct Scenario {
     /// Sensor settings.
     #[serde(default)]
     pub sensors: SensorsSpec,
+    /// The simulated craft's departures from the Otter's numbers (none if
+    /// absent): the vessel a twin's model is wrong about.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vessel: Option<VesselSpec>,
+}
+
+/// Scale factors on the Otter's numbers (1 = the Otter). A twin whose model
+/// is the Otter's is then wrong about the vessel by these factors; the
+/// trust tests draw them.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct VesselSpec {
+    /// Rigid-body mass and inertia (hull and payload).
+    pub mass_scale: f64,
+    /// Added mass and added inertia.
+    pub added_mass_scale: f64,
+    /// Linear surge damping `X_u` (hull resistance; fouling raises it).
+    pub surge_damping_scale: f64,
+    /// Linear sway damping `Y_v`.
+    pub sway_damping_scale: f64,
+    /// Linear and quadratic yaw damping.
+    pub yaw_damping_scale: f64,
+    /// Cross-flow drag.
+    pub crossflow_drag_scale: f64,
+    /// Both propellers' thrust coefficients, ahead and astern (the same
+    /// factor on both sides: a difference between the sides is a loss).
+    pub thrust_scale: f64,
+}
+
+impl Default for VesselSpec {
+    fn default() -> Self {
+        Self {
+            mass_scale: 1.0,
+            added_mass_scale: 1.0,
+            surge_damping_scale: 1.0,
+            sway_damping_scale: 1.0,
+            yaw_damping_scale: 1.0,
+            crossflow_drag_scale: 1.0,
+            thrust_scale: 1.0,
+        }
+    }
 }
 
 fn default_seed() -> u64 {
@@ -540,6 +581,33 @@ pub struct SensorsSpec {
     pub heading: HeadingSpec,
     /// The shaft tachometers.
     pub propellers: PropellerSensorSpec,
+    /// A rate gyro or rate-of-turn sensor (off by default).
+    pub yaw_rate: YawRateSpec,
+}
+
+/// Rate-gyro settings.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct YawRateSpec {
+    /// Whether yaw rates are produced.
+    pub enabled: bool,
+    /// Rate, Hz.
+    pub rate_hz: f64,
+    /// Noise, standard deviation, deg/s.
+    pub sigma_deg_s: f64,
+    /// Constant bias (reported minus true), deg/s.
+    pub bias_deg_s: f64,
+}
+
+impl Default for YawRateSpec {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            rate_hz: 10.0,
+            sigma_deg_s: 0.2,
+            bias_deg_s: 0.0,
+        }
+    }
 }
 
 /// GNSS settings.
@@ -698,6 +766,7 @@ pub struct Plan {
     pub(crate) gnss: Option<GnssSettings>,
     pub(crate) heading: Option<HeadingSettings>,
     pub(crate) propellers: Option<PropellerSettings>,
+    pub(crate) yaw_rate: Option<YawRateSettings>,
     pub(crate) vessel: OtterParams,
 }
 
@@ -861,6 +930,7 @@ impl Scenario {
             wind: None,
             disturbance: None,
             sensors: SensorsSpec::default(),
+            vessel: None,
         }
     }
 
@@ -995,7 +1065,10 @@ impl Scenario {
             }
         };
 
-        let vessel = OtterParams::default();
+        let vessel = match &self.vessel {
+            None => OtterParams::default(),
+            Some(v) => OtterParams::default().scaled(&v.validated()?),
+        };
         let wind = match &self.wind {
             None => None,
             Some(w) => Some(WindModel {
@@ -1016,7 +1089,7 @@ impl Scenario {
             Some(d) => Self::validate_disturbance(d)?,
         };
 
-        let (gnss, heading, propellers) = self.validate_sensors()?;
+        let (gnss, heading, propellers, yaw_rate) = self.validate_sensors()?;
 
         Ok(Plan {
             name: self.name.clone(),
@@ -1039,6 +1112,7 @@ impl Scenario {
             gnss,
             heading,
             propellers,
+            yaw_rate,
             vessel,
         })
     }
@@ -1185,6 +1259,7 @@ impl Scenario {
             Option<GnssSettings>,
             Option<HeadingSettings>,
             Option<PropellerSettings>,
+            Option<YawRateSettings>,
         ),
         ScenarioError,
     > {
@@ -1214,6 +1289,17 @@ impl Scenario {
         } else {
             None
         };
+        let y = &self.sensors.yaw_rate;
+        let yaw_rate = if y.enabled {
+            Some(YawRateSettings {
+                period_s: period_of("sensors.yaw_rate.rate_hz", y.rate_hz)?,
+                sigma_radps: non_negative("sensors.yaw_rate.sigma_deg_s", y.sigma_deg_s)?
+                    .to_radians(),
+                bias_radps: finite("sensors.yaw_rate.bias_deg_s", y.bias_deg_s)?.to_radians(),
+            })
+        } else {
+            None
+        };
         let h = &self.sensors.heading;
         let heading = if h.enabled {
             Some(HeadingSettings {
@@ -1234,7 +1320,22 @@ impl Scenario {
         } else {
             None
         };
-        Ok((gnss, heading, propellers))
+        Ok((gnss, heading, propellers, yaw_rate))
+    }
+}
+
+impl VesselSpec {
+    /// The scales, each checked to be positive.
+    fn validated(&self) -> Result<VesselScales, ScenarioError> {
+        Ok(VesselScales {
+            mass: positive("vessel.mass_scale", self.mass_scale)?,
+            added_mass: positive("vessel.added_mass_scale", self.added_mass_scale)?,
+            surge_damping: positive("vessel.surge_damping_scale", self.surge_damping_scale)?,
+            sway_damping: positive("vessel.sway_damping_scale", self.sway_damping_scale)?,
+            yaw_damping: positive("vessel.yaw_damping_scale", self.yaw_damping_scale)?,
+            crossflow_drag: positive("vessel.crossflow_drag_scale", self.crossflow_drag_scale)?,
+            thrust: positive("vessel.thrust_scale", self.thrust_scale)?,
+        })
     }
 }
 

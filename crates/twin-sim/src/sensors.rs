@@ -48,6 +48,18 @@ pub enum SensorEvent {
     PropellerMeasured(PropellerSpeeds),
     /// Shaft speeds the autopilot commanded (no noise).
     PropellerCommanded(PropellerSpeeds),
+    /// A rate gyro's yaw rate.
+    YawRate(YawRateSample),
+}
+
+/// One yaw-rate measurement (a rate gyro, NMEA 0183 `ROT`, NMEA 2000 PGN
+/// 127251).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct YawRateSample {
+    /// Time stamp, seconds since the Unix epoch (UTC).
+    pub time_s: f64,
+    /// Reported yaw rate, rad/s (positive: bow to starboard).
+    pub yaw_rate_radps: f64,
 }
 
 impl SensorEvent {
@@ -57,6 +69,7 @@ impl SensorEvent {
             SensorEvent::Gnss(f) => f.time_s,
             SensorEvent::Heading(h) => h.time_s,
             SensorEvent::PropellerMeasured(p) | SensorEvent::PropellerCommanded(p) => p.time_s,
+            SensorEvent::YawRate(y) => y.time_s,
         }
     }
 }
@@ -111,6 +124,7 @@ pub(crate) struct GnssSettings {
 pub(crate) const STREAM_GNSS: u64 = 0x9E37_79B9_7F4A_7C15;
 pub(crate) const STREAM_HEADING: u64 = 0xC2B2_AE3D_27D4_EB4F;
 pub(crate) const STREAM_PROPELLERS: u64 = 0x1656_67B1_9E37_79F9;
+pub(crate) const STREAM_YAW_RATE: u64 = 0x27D4_EB2F_1656_67C5;
 
 fn stream(seed: u64, salt: u64) -> StdRng {
     StdRng::seed_from_u64(seed ^ salt)
@@ -183,6 +197,7 @@ impl GnssSensor {
             sog_mps: Some(s.sog_scale * speed),
             cog_rad: cog,
             heading_rad: None,
+            yaw_rate_radps: None,
             hdop: s.hdop,
         }
     }
@@ -253,6 +268,38 @@ impl PropellerSensor {
             time_s: start_unix_s + elapsed_s,
             port_radps: shafts_radps[0] + sigma * gaussian(&mut self.rng),
             starboard_radps: shafts_radps[1] + sigma * gaussian(&mut self.rng),
+        }
+    }
+}
+
+/// Validated rate-gyro settings, SI units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct YawRateSettings {
+    pub period_s: f64,
+    pub sigma_radps: f64,
+    pub bias_radps: f64,
+}
+
+/// A rate gyro with white noise and a constant bias.
+#[derive(Debug, Clone)]
+pub(crate) struct YawRateSensor {
+    settings: YawRateSettings,
+    rng: StdRng,
+}
+
+impl YawRateSensor {
+    pub fn new(settings: YawRateSettings, seed: u64) -> Self {
+        Self {
+            settings,
+            rng: stream(seed, STREAM_YAW_RATE),
+        }
+    }
+
+    pub fn sample(&mut self, elapsed_s: f64, start_unix_s: f64, r_radps: f64) -> YawRateSample {
+        let noise = self.settings.sigma_radps * gaussian(&mut self.rng);
+        YawRateSample {
+            time_s: start_unix_s + elapsed_s,
+            yaw_rate_radps: r_radps + self.settings.bias_radps + noise,
         }
     }
 }

@@ -23,7 +23,7 @@ use crate::otter::{Actuation, OtterModel, StateVector, Surroundings, idx, rk4_st
 use crate::scenario::{Drive, Plan, Scenario, ScenarioError};
 use crate::sensors::{
     BodyMotion, GnssSensor, HeadingSample, HeadingSensor, PropellerSensor, SensorEvent,
-    radps_to_rpm,
+    YawRateSensor, radps_to_rpm,
 };
 
 /// Two instants closer than this are the same instant, s.
@@ -250,6 +250,9 @@ pub fn run_plan(plan: &Plan) -> SimRun {
     let mut props = plan
         .propellers
         .map(|s| (PropellerSensor::new(s, plan.seed), Ticker::new(s.period_s)));
+    let mut gyro = plan
+        .yaw_rate
+        .map(|s| (YawRateSensor::new(s, plan.seed), Ticker::new(s.period_s)));
     let mut disturbance = plan.disturbance.map(|s| {
         (
             DisturbanceProcess::new(s, plan.seed),
@@ -346,6 +349,12 @@ pub fn run_plan(plan: &Plan) -> SimRun {
             }));
         }
 
+        if let Some((sensor, clock)) = gyro.as_mut()
+            && clock.fire(t)
+        {
+            events.push(SensorEvent::YawRate(sensor.sample(t, start, body.r_radps)));
+        }
+
         if t >= plan.duration_s - SAME_INSTANT_S {
             break;
         }
@@ -358,6 +367,7 @@ pub fn run_plan(plan: &Plan) -> SimRun {
             gnss.as_ref().map(|(_, c)| c.due_s()),
             heading.as_ref().map(|(_, c)| c.due_s()),
             props.as_ref().map(|(_, c)| c.due_s()),
+            gyro.as_ref().map(|(_, c)| c.due_s()),
             disturbance.as_ref().map(|(_, c)| c.due_s()),
             breakpoints
                 .iter()

@@ -120,6 +120,7 @@ fn sensor_errors(run: &SimRun) -> Vec<f64> {
                 p.port_radps - t.shaft_cmd_radps[0],
                 p.starboard_radps - t.shaft_cmd_radps[1],
             ]),
+            SensorEvent::YawRate(y) => out.push(y.yaw_rate_radps - t.r_radps),
         }
     }
     out

@@ -87,6 +87,8 @@ pub struct AssemblerConfig {
     pub pair_window_s: f64,
     /// Use attitude yaw (PGN 127257) as a true heading.
     pub heading_from_attitude: bool,
+    /// Oldest yaw rate joined to a fix, seconds from the fix time.
+    pub max_yaw_rate_age_s: f64,
     /// Drop a position equal to the previous one of its source (a re-sent fix).
     pub drop_repeated_positions: bool,
     /// How long after a position an equal one counts as re-sent, seconds.
@@ -102,6 +104,7 @@ impl Default for AssemblerConfig {
             max_heading_age_s: 1.0,
             pair_window_s: 0.25,
             heading_from_attitude: true,
+            max_yaw_rate_age_s: 0.5,
             drop_repeated_positions: true,
             repeat_window_s: 2.0,
         }
@@ -151,6 +154,10 @@ pub struct AssembleStats {
     pub courses_unused: u64,
     /// Heading records of other sources (not used).
     pub headings_other_sources: u64,
+    /// Fixes that carry a yaw rate.
+    pub fixes_with_yaw_rate: u64,
+    /// Yaw-rate records of other sources (not used).
+    pub yaw_rates_other_sources: u64,
     /// Propeller pairs emitted (paired here or passed through).
     pub propeller_pairs: u64,
     /// Propeller samples replaced before they were paired.
@@ -167,6 +174,7 @@ struct Tally {
     best_rank: Option<i8>,
     courses: u64,
     headings: u64,
+    yaw_rates: u64,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -186,11 +194,13 @@ pub struct FixAssembler {
     position_source: Option<Source>,
     course_source: Option<Source>,
     heading_source: Option<Source>,
+    yaw_rate_source: Option<Source>,
     pending: Option<GnssFix>,
     /// The latest accepted position of the position source: time, lat, lon.
     last_position: Option<(f64, f64, f64)>,
     course: Option<Fresh<(Option<f64>, Option<f64>)>>,
     heading: Option<Fresh<f64>>,
+    yaw_rate: Option<Fresh<f64>>,
     port: Option<Fresh<f64>>,
     starboard: Option<Fresh<f64>>,
     last_fix_s: Option<f64>,
@@ -213,10 +223,12 @@ impl FixAssembler {
             position_source,
             course_source: None,
             heading_source: None,
+            yaw_rate_source: None,
             pending: None,
             last_position: None,
             course: None,
             heading: None,
+            yaw_rate: None,
             port: None,
             starboard: None,
             last_fix_s: None,
@@ -228,6 +240,12 @@ impl FixAssembler {
     /// The counts so far.
     pub fn stats(&self) -> &AssembleStats {
         &self.stats
+    }
+
+    /// The chosen source of yaw rates (rate of turn, gyro yaw rate), once
+    /// known: the one that sent the most.
+    pub fn yaw_rate_source(&self) -> Option<Source> {
+        self.yaw_rate_source
     }
 
     /// The chosen sources (position, course/speed, heading), once known.
@@ -277,6 +295,16 @@ impl FixAssembler {
         }
     }
 
+    fn yaw_rate_of(m: &Measurement) -> Option<f64> {
+        match *m {
+            Measurement::RateOfTurn { radps } => Some(radps),
+            Measurement::GyroRates {
+                yaw_radps: Some(r), ..
+            } => Some(r),
+            _ => None,
+        }
+    }
+
     /// Chooses the sources from the held records, then replays them.
     fn decide(&mut self, out: &mut Vec<Assembled>) {
         let mut tallies: Vec<(Source, Tally)> = Vec::new();
@@ -298,6 +326,7 @@ impl FixAssembler {
                 }
                 Measurement::CourseSpeed { .. } => tally.courses += 1,
                 _ if heading => tally.headings += 1,
+                ref m if Self::yaw_rate_of(m).is_some() => tally.yaw_rates += 1,
                 _ => {}
             }
         }
@@ -325,6 +354,7 @@ impl FixAssembler {
             best_by(&|t| (0, t.courses))
         };
         self.heading_source = best_by(&|t| (0, t.headings));
+        self.yaw_rate_source = best_by(&|t| (0, t.yaw_rates));
         self.deciding = false;
         let window = std::mem::take(&mut self.window);
         for record in window {
@@ -360,13 +390,21 @@ impl FixAssembler {
             fix.heading_rad = Some(heading.value);
             self.heading = None;
         }
+        if let Some(rate) = self.yaw_rate
+            && (fix.time_s - rate.time_s).abs() <= self.config.max_yaw_rate_age_s
+        {
+            fix.yaw_rate_radps = Some(rate.value);
+            self.yaw_rate = None;
+        }
         let with_course = fix.cog_rad.is_some() || fix.sog_mps.is_some();
         let with_heading = fix.heading_rad.is_some();
+        let with_yaw_rate = fix.yaw_rate_radps.is_some();
         if self.emit(Assembled::Fix(fix), out) {
             self.last_fix_s = Some(fix.time_s);
             self.stats.fixes += 1;
             self.stats.fixes_with_course += u64::from(with_course);
             self.stats.fixes_with_heading += u64::from(with_heading);
+            self.stats.fixes_with_yaw_rate += u64::from(with_yaw_rate);
         }
     }
 
@@ -416,6 +454,7 @@ impl FixAssembler {
                     sog_mps: None,
                     cog_rad: None,
                     heading_rad: None,
+                    yaw_rate_radps: None,
                     hdop,
                 });
             }
@@ -471,6 +510,7 @@ impl FixAssembler {
                     self.stats.fixes_with_course +=
                         u64::from(fix.cog_rad.is_some() || fix.sog_mps.is_some());
                     self.stats.fixes_with_heading += u64::from(fix.heading_rad.is_some());
+                    self.stats.fixes_with_yaw_rate += u64::from(fix.yaw_rate_radps.is_some());
                 } else if !after {
                     self.stats.positions_not_after_previous += 1;
                 }
@@ -485,7 +525,7 @@ impl FixAssembler {
                     self.stats.thrusts += 1;
                 }
             }
-            _ => {
+            ref m => {
                 if let Some(h) = heading {
                     if !Self::accepts(&mut self.heading_source, record.source) {
                         self.stats.headings_other_sources += 1;
@@ -494,6 +534,15 @@ impl FixAssembler {
                     self.heading = Some(Fresh {
                         time_s: record.time_s,
                         value: h,
+                    });
+                } else if let Some(r) = Self::yaw_rate_of(m) {
+                    if !Self::accepts(&mut self.yaw_rate_source, record.source) {
+                        self.stats.yaw_rates_other_sources += 1;
+                        return;
+                    }
+                    self.yaw_rate = Some(Fresh {
+                        time_s: record.time_s,
+                        value: r,
                     });
                 }
             }

@@ -6,9 +6,13 @@
 //! GNSS fix:
 //! ```json
 //! {"time":"2026-08-03T04:27:20.588Z","lat_deg":34.41,"lon_deg":133.54,
-//!  "sog_mps":2.77,"cog_rad":5.0265,"heading_rad":5.01,"hdop":0.9,"replay":true}
+//!  "sog_mps":2.77,"cog_rad":5.0265,"heading_rad":5.01,"yaw_rate_radps":0.02,
+//!  "hdop":0.9,"replay":true}
 //! ```
-//! `heading_rad`, `hdop` and `replay` are optional. Actuators:
+//! `heading_rad`, `yaw_rate_radps` (a rate gyro or rate-of-turn sensor,
+//! positive turning to starboard), `hdop` and `replay` are optional. Angles
+//! are radians; one outside [-2 pi, 4 pi] is refused (most likely degrees).
+//! Actuators:
 //! ```json
 //! {"time":"2026-08-03T04:27:20.588Z","rpm":{"port":1200.0,"starboard":1185.5}}
 //! {"time":"2026-08-03T04:27:20.588Z","thrust_n":{"port":40.0,"starboard":38.5}}
@@ -35,6 +39,16 @@ pub const MAX_ABS_RPM: f64 = 20_000.0;
 /// The largest propeller thrust accepted, N (either direction).
 pub const MAX_ABS_THRUST_N: f64 = 1.0e6;
 
+/// The largest yaw rate accepted, rad/s (either direction): about 290 deg/s,
+/// beyond any hull's turn.
+pub const MAX_ABS_YAW_RATE_RADPS: f64 = 5.0;
+
+/// Whether an angle is one a sender could mean in radians: within
+/// [-2 pi, 4 pi] (a heading in degrees would mostly fall outside).
+pub fn plausible_radians(angle_rad: f64) -> bool {
+    (-std::f64::consts::TAU..=2.0 * std::f64::consts::TAU).contains(&angle_rad)
+}
+
 /// The GNSS fix payload, as on the wire.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GnssMessage {
@@ -51,6 +65,10 @@ pub struct GnssMessage {
     /// True heading, rad clockwise from true north.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub heading_rad: Option<f64>,
+    /// Yaw rate from a rate gyro or rate-of-turn sensor, rad/s, positive
+    /// turning to starboard.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub yaw_rate_radps: Option<f64>,
     /// Horizontal dilution of precision.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hdop: Option<f64>,
@@ -117,7 +135,8 @@ pub enum MessageError {
         field: &'static str,
     },
     /// A number is outside its allowed range (|lat| <= 90, |lon| <= 180,
-    /// 0 <= sog <= 50 m/s, hdop > 0, |rpm| <= 20 000, |thrust| <= 1e6 N).
+    /// 0 <= sog <= 50 m/s, angles within [-2 pi, 4 pi], |yaw rate| <= 5
+    /// rad/s, hdop > 0, |rpm| <= 20 000, |thrust| <= 1e6 N).
     #[error("{field} out of range")]
     OutOfRange {
         /// The field.
@@ -230,11 +249,22 @@ impl GnssMessage {
         let lon_deg = within(lon_deg, "lon_deg", lon_deg.abs() <= 180.0)?;
         let sog_mps = finite(self.sog_mps, "sog_mps")?;
         let sog_mps = within(sog_mps, "sog_mps", (0.0..=MAX_SPEED_MPS).contains(&sog_mps))?;
-        let cog_rad = wrap_two_pi(finite(self.cog_rad, "cog_rad")?);
-        let heading_rad = match self.heading_rad {
-            Some(h) => Some(wrap_two_pi(finite(h, "heading_rad")?)),
-            None => None,
+        let angle = |v: f64, field| {
+            let v = finite(v, field)?;
+            within(v, field, plausible_radians(v)).map(wrap_two_pi)
         };
+        let cog_rad = angle(self.cog_rad, "cog_rad")?;
+        let heading_rad = self
+            .heading_rad
+            .map(|h| angle(h, "heading_rad"))
+            .transpose()?;
+        let yaw_rate_radps = self
+            .yaw_rate_radps
+            .map(|r| {
+                let r = finite(r, "yaw_rate_radps")?;
+                within(r, "yaw_rate_radps", r.abs() <= MAX_ABS_YAW_RATE_RADPS)
+            })
+            .transpose()?;
         let hdop = match self.hdop {
             Some(h) => Some(within(finite(h, "hdop")?, "hdop", h > 0.0)?),
             None => None,
@@ -245,6 +275,7 @@ impl GnssMessage {
             sog_mps: Some(sog_mps),
             cog_rad: Some(cog_rad),
             heading_rad,
+            yaw_rate_radps,
             hdop,
         })
     }
@@ -265,6 +296,7 @@ impl GnssMessage {
             sog_mps,
             cog_rad,
             heading_rad: fix.heading_rad,
+            yaw_rate_radps: fix.yaw_rate_radps,
             hdop: fix.hdop,
             replay,
         };
@@ -556,6 +588,7 @@ mod tests {
             sog_mps: None,
             cog_rad: Some(0.0),
             heading_rad: None,
+            yaw_rate_radps: None,
             hdop: None,
         };
         assert_eq!(
@@ -581,7 +614,7 @@ mod tests {
         ) {
             let fix = GnssFix {
                 time_s: t, position: LatLon { lat_deg: lat, lon_deg: lon },
-                sog_mps: Some(sog), cog_rad: Some(cog), heading_rad: heading, hdop,
+                sog_mps: Some(sog), cog_rad: Some(cog), heading_rad: heading, yaw_rate_radps: None, hdop,
             };
             let bytes = encode_gnss(&fix, replay).unwrap();
             let back = decode_gnss(&bytes).unwrap();

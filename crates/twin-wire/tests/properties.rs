@@ -198,7 +198,7 @@ proptest! {
             position: twin_core::geodesy::LatLon { lat_deg: lat, lon_deg: 10.0 },
             sog_mps: Some(value),
             cog_rad: Some(value),
-            heading_rad: None,
+            heading_rad: None, yaw_rate_radps: None,
             hdop: Some(1.0),
         };
         let gp = Talker::GP;

@@ -49,6 +49,7 @@ impl SyntheticLog {
             sog_mps: None,
             cog_rad: None,
             heading_rad: None,
+            yaw_rate_radps: None,
             hdop: Some(0.9),
         };
         let gp = Talker::GP;

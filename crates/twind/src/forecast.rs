@@ -283,6 +283,7 @@ mod tests {
                 sog_mps: Some(1.5),
                 cog_rad: Some(0.0),
                 heading_rad: None,
+                yaw_rate_radps: None,
                 hdop: None,
             })
             .unwrap();

@@ -1,5 +1,6 @@
 //! Per-vessel calibration files: what the twin has learnt (the fault
-//! estimate, its covariance, the anti-windup memory and the decisions),
+//! estimate, its covariance, the anti-windup memory, the current and the
+//! heading sensor's offset it estimated, and the decisions),
 //! saved periodically and on shutdown, restored when the vessel's twin
 //! starts, so a restart does not re-learn for minutes.
 //!
@@ -11,9 +12,10 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 use twin_core::decision::{ThrusterDecision, ThrusterStatus};
+use twin_core::estimator::Surroundings;
 use twin_core::twin::{Calibration, FaultSource};
 
-/// The file format (version 1).
+/// The file format (version 2).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CalibrationFile {
     /// Format version.
@@ -22,18 +24,35 @@ pub struct CalibrationFile {
     pub vessel: String,
     /// `kinetic` or `seed_method`.
     pub source: String,
-    /// Fault estimate `[port, starboard]` (or the seed's `[a, r]`).
-    pub theta: [f64; 2],
+    /// Fault estimate: the extended twin's `[port loss, starboard loss,
+    /// surge damping error, yaw damping error]`, or the seed's `[a, r]`.
+    pub theta: Vec<f64>,
     /// Fault covariance, row-major.
-    pub theta_covariance: [f64; 4],
+    pub theta_covariance: Vec<f64>,
     /// Anti-windup memory per fault.
-    pub held_information: [f64; 2],
+    pub held_information: Vec<f64>,
+    /// The current `[north, east]` (m/s) and the heading sensor's offset
+    /// (rad) the extended twin estimated, with their covariance (row-major
+    /// 3 x 3).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surroundings: Option<SurroundingsFile>,
     /// Status per thruster.
     pub status: [String; 2],
     /// Onset per thruster, seconds since the epoch.
     pub onset_time_s: [Option<f64>; 2],
     /// Time of the last fix learnt from, seconds since the epoch.
     pub time_s: f64,
+}
+
+/// The surroundings part of a calibration file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SurroundingsFile {
+    /// Water current `[north, east]`, m/s.
+    pub current_mps: [f64; 2],
+    /// Heading sensor minus true heading, rad.
+    pub heading_bias_rad: f64,
+    /// Covariance of `[current north, current east, heading bias]`, row-major.
+    pub covariance: [f64; 9],
 }
 
 /// Why a calibration could not be loaded or saved.
@@ -75,16 +94,21 @@ impl CalibrationFile {
     /// From the twin's calibration.
     pub fn new(vessel: &str, c: &Calibration) -> Self {
         Self {
-            version: 1,
+            version: 2,
             vessel: vessel.to_string(),
             source: match c.source {
                 FaultSource::Kinetic => "kinetic",
                 FaultSource::SeedMethod => "seed_method",
             }
             .to_string(),
-            theta: c.theta,
-            theta_covariance: c.theta_covariance,
-            held_information: c.held_information,
+            theta: c.theta.clone(),
+            theta_covariance: c.theta_covariance.clone(),
+            held_information: c.held_information.clone(),
+            surroundings: c.surroundings.map(|s| SurroundingsFile {
+                current_mps: s.current_mps,
+                heading_bias_rad: s.heading_bias_rad,
+                covariance: std::array::from_fn(|k| s.covariance[k / 3][k % 3]),
+            }),
             status: c.decisions.map(|d| status_name(d.status)),
             onset_time_s: c.decisions.map(|d| d.onset_time_s),
             time_s: c.time_s,
@@ -93,7 +117,7 @@ impl CalibrationFile {
 
     /// Back to the twin's calibration, checked.
     pub fn to_calibration(&self) -> Result<Calibration, String> {
-        if self.version != 1 {
+        if self.version != 2 {
             return Err(format!("unknown version {}", self.version));
         }
         let source = match self.source.as_str() {
@@ -101,18 +125,28 @@ impl CalibrationFile {
             "seed_method" => FaultSource::SeedMethod,
             other => return Err(format!("unknown source {other:?}")),
         };
+        let surroundings_numbers = self.surroundings.iter().flat_map(|s| {
+            s.current_mps
+                .iter()
+                .chain(s.covariance.iter())
+                .chain([&s.heading_bias_rad])
+        });
         let numbers = self
             .theta
             .iter()
             .chain(&self.theta_covariance)
             .chain(&self.held_information)
+            .chain(surroundings_numbers)
             .chain(std::iter::once(&self.time_s));
         if numbers.into_iter().any(|v| !v.is_finite()) {
             return Err("non-finite number".into());
         }
-        let c = self.theta_covariance;
-        if !(c[0] > 0.0 && c[3] > 0.0 && c[0] * c[3] - c[1] * c[2] > 0.0) {
-            return Err("covariance is not positive definite".into());
+        let p = self.theta.len();
+        if p == 0 || self.theta_covariance.len() != p * p || self.held_information.len() != p {
+            return Err("fault sizes do not match".into());
+        }
+        if !positive_semi_definite(&self.theta_covariance, p) {
+            return Err("covariance is not positive semi-definite".into());
         }
         let decision = |i: usize| -> Result<ThrusterDecision, String> {
             Ok(ThrusterDecision {
@@ -124,13 +158,54 @@ impl CalibrationFile {
         let decisions = [decision(0)?, decision(1)?];
         Ok(Calibration {
             source,
-            theta: self.theta,
-            theta_covariance: self.theta_covariance,
-            held_information: self.held_information,
+            theta: self.theta.clone(),
+            theta_covariance: self.theta_covariance.clone(),
+            held_information: self.held_information.clone(),
+            surroundings: self.surroundings.as_ref().map(|s| Surroundings {
+                current_mps: s.current_mps,
+                heading_bias_rad: s.heading_bias_rad,
+                covariance: std::array::from_fn(|i| {
+                    std::array::from_fn(|j| s.covariance[3 * i + j])
+                }),
+            }),
             decisions,
             time_s: self.time_s,
         })
     }
+}
+
+/// Whether the row-major `p x p` matrix `m` is symmetric and positive
+/// semi-definite (a Cholesky factorisation that tolerates zero pivots of
+/// held faults).
+fn positive_semi_definite(m: &[f64], p: usize) -> bool {
+    let at = |i: usize, j: usize| m[i * p + j];
+    for i in 0..p {
+        for j in 0..i {
+            if (at(i, j) - at(j, i)).abs() > 1e-9 * (1.0 + at(i, i).abs() + at(j, j).abs()) {
+                return false;
+            }
+        }
+    }
+    let mut l = vec![0.0; p * p];
+    for j in 0..p {
+        let mut d = at(j, j);
+        for k in 0..j {
+            d -= l[j * p + k] * l[j * p + k];
+        }
+        if d < -1e-12 * (1.0 + at(j, j).abs()) {
+            return false;
+        }
+        let d = d.max(0.0).sqrt();
+        l[j * p + j] = d;
+        for i in j + 1..p {
+            let mut s = at(i, j);
+            for k in 0..j {
+                s -= l[i * p + k] * l[j * p + k];
+            }
+            l[i * p + j] = if d > 0.0 { s / d } else { 0.0 };
+        }
+    }
+    true
 }
 
 /// The file of `vessel` in `dir`.
@@ -186,9 +261,19 @@ mod tests {
     fn calibration() -> Calibration {
         Calibration {
             source: FaultSource::Kinetic,
-            theta: [0.18, 0.01],
-            theta_covariance: [1e-4, 2e-5, 2e-5, 2e-4],
-            held_information: [1234.5, 987.6],
+            theta: vec![0.18, 0.01, 0.2, -0.05],
+            theta_covariance: vec![
+                1e-4, 2e-5, 0.0, 0.0, //
+                2e-5, 2e-4, 0.0, 0.0, //
+                0.0, 0.0, 0.01, 1e-3, //
+                0.0, 0.0, 1e-3, 0.02,
+            ],
+            held_information: vec![1234.5, 987.6, 55.0, 12.0],
+            surroundings: Some(Surroundings {
+                current_mps: [0.1, -0.2],
+                heading_bias_rad: 0.05,
+                covariance: [[1e-3, 1e-4, 0.0], [1e-4, 2e-3, 0.0], [0.0, 0.0, 1e-4]],
+            }),
             decisions: [
                 ThrusterDecision {
                     status: ThrusterStatus::Fault,
@@ -221,9 +306,15 @@ mod tests {
     #[test]
     fn a_broken_covariance_is_refused() {
         let mut f = CalibrationFile::new("v", &calibration());
-        f.theta_covariance = [1e-4, 1.0, 1.0, 1e-4];
+        f.theta_covariance = vec![1e-4, 1.0, 1.0, 1e-4];
+        f.theta = vec![0.1, 0.1];
+        f.held_information = vec![1.0, 1.0];
         assert!(f.to_calibration().is_err());
-        f.theta_covariance = [f64::NAN, 0.0, 0.0, 1e-4];
+        f.theta_covariance = vec![f64::NAN, 0.0, 0.0, 1e-4];
+        assert!(f.to_calibration().is_err());
+        // Sizes that do not match each other.
+        f.theta_covariance = vec![1e-4, 0.0, 0.0, 1e-4];
+        f.held_information = vec![1.0];
         assert!(f.to_calibration().is_err());
     }
 }

@@ -174,6 +174,7 @@ impl Fleet {
             heading_rad: Some(wrap_two_pi(
                 chi + c.heading_minus_course_rad + HEADING_SIGMA_RAD * rng.normal(),
             )),
+            yaw_rate_radps: None,
             hdop: Some(0.9),
         }
     }

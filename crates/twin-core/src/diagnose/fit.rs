@@ -564,9 +564,9 @@ fn fit(ctx: &Ctx<'_>, accepted: &Hypothesis, cause: Cause) -> Option<Fitted> {
 }
 
 fn evidence(before: &ResidualSummary, after: &ResidualSummary) -> Vec<String> {
-    use super::residuals::COMPONENTS;
+    use super::residuals::{COMPONENT_COUNT, COMPONENTS};
     let mut lines: Vec<(f64, String)> = Vec::new();
-    for c in 0..6 {
+    for c in 0..COMPONENT_COUNT {
         if !before.measured[c] {
             continue;
         }

@@ -57,5 +57,6 @@ pub use fit::{
 pub use monitor::{BIAS_BATCHES, LiveMonitor, MonitorConfig, Trigger};
 pub use prepare::{DiagEvent, Prepared, prepare};
 pub use residuals::{
-    COMPONENTS, InnovationRecord, ResidualSummary, SIGNATURES, SignatureCorrelation,
+    COMPONENT_COUNT, COMPONENTS, InnovationRecord, ResidualSummary, SIGNATURES,
+    SignatureCorrelation,
 };

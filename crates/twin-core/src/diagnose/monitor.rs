@@ -294,6 +294,7 @@ mod tests {
             sog_mps: Some(1.0),
             cog_rad: Some(0.0),
             heading_rad: None,
+            yaw_rate_radps: None,
             hdop: None,
         })
     }

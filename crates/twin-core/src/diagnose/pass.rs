@@ -10,14 +10,16 @@ use nalgebra::{SMatrix, SVector};
 
 use super::fit::{DiagnoseConfig, Hypothesis};
 use super::prepare::{Prepared, Step};
-use super::residuals::InnovationRecord;
+use super::residuals::{COMPONENT_COUNT, InnovationRecord};
 use crate::aekf::{AekfError, AekfState, StepReport};
 use crate::estimator::{
-    CourseGate, KineticBase, KineticOptions, LocalFix, WaterBase, WaterOptions,
+    CourseGate, KineticBase, KineticOptions, KineticState, LocalFix, Term, WaterBase, WaterOptions,
 };
 use crate::linalg::cholesky;
 use crate::model::Model;
-use crate::models::otter_twin::{OtterTwin, ShaftSpeeds, idx as kidx};
+use crate::models::otter_twin::{
+    FAULTS, MEASUREMENTS, OtterTwin, STATES, ShaftSpeeds, idx as kidx,
+};
 use crate::models::water_kinematic::{WaterKinematic, idx as widx};
 use crate::predict::predict_states;
 
@@ -109,29 +111,29 @@ trait PassBase<const N: usize, const M: usize, const P: usize> {
 
 struct Kinetic(KineticBase);
 
-impl PassBase<8, 5, 2> for Kinetic {
-    type Model = OtterTwin<8>;
-    const SLOTS: [usize; 5] = [0, 1, 2, 3, 4];
+impl PassBase<STATES, MEASUREMENTS, FAULTS> for Kinetic {
+    type Model = OtterTwin;
+    const SLOTS: [usize; MEASUREMENTS] = [0, 1, 2, 3, 4, 6];
 
-    fn model(&self) -> &OtterTwin<8> {
+    fn model(&self) -> &OtterTwin {
         self.0.model()
     }
 
-    fn prior(&self, fix: &LocalFix) -> AekfState<8, 5, 2> {
+    fn prior(&self, fix: &LocalFix) -> KineticState {
         self.0.prior(fix, None)
     }
 
-    fn available(&self, fix: &LocalFix) -> [bool; 5] {
+    fn available(&self, fix: &LocalFix) -> [bool; MEASUREMENTS] {
         self.0.measurement(fix).available
     }
 
     fn step(
         &self,
-        state: &mut AekfState<8, 5, 2>,
+        state: &mut KineticState,
         input: &ShaftSpeeds,
         fix: &LocalFix,
         dt_s: f64,
-    ) -> Result<StepReport<5, 2>, AekfError> {
+    ) -> Result<StepReport<MEASUREMENTS, FAULTS>, AekfError> {
         self.0.step(state, input, fix, dt_s)
     }
 
@@ -153,12 +155,12 @@ impl PassBase<8, 5, 2> for Kinetic {
             .collect()
     }
 
-    fn signatures(&self, x: &SVector<f64, 8>) -> [f64; 4] {
+    fn signatures(&self, x: &SVector<f64, STATES>) -> [f64; 4] {
         let (s, c) = x[kidx::PSI].sin_cos();
         [s, c, x[kidx::U].hypot(x[kidx::V]), x[kidx::R]]
     }
 
-    fn at_split(&self, st: &AekfState<8, 5, 2>) -> AtSplit {
+    fn at_split(&self, st: &KineticState) -> AtSplit {
         let sig = st.fault_sigma();
         let cov = st.p + st.upsilon * st.s * st.upsilon.transpose();
         let (a, b) = (kidx::CURRENT_NORTH, kidx::CURRENT_EAST);
@@ -225,6 +227,8 @@ pub(super) fn kinetic_pass(prep: &Prepared, hyp: &Hypothesis, opts: PassOptions<
         effects: hyp.effects,
         current: hyp.current,
         losses: hyp.loss,
+        heading_bias: Term::Off,
+        profile_errors: Term::Off,
     };
     match KineticBase::new(&config.kinetic, gate(opts.config), options) {
         Ok(base) => drive(&Kinetic(base), prep, opts),
@@ -328,9 +332,9 @@ where
             last_speed = Some((step.time_s, sig[2]));
             let mut rec = InnovationRecord {
                 time_s: step.time_s,
-                innovation: [0.0; 6],
-                sigma: [0.0; 6],
-                available: [false; 6],
+                innovation: [0.0; COMPONENT_COUNT],
+                sigma: [0.0; COMPONENT_COUNT],
+                available: [false; COMPONENT_COUNT],
                 nis: report.nis,
                 dof: report.dof,
                 signatures: [sig[0], sig[1], sig[2], sig[3], accel, step.time_s - t0],

@@ -110,6 +110,7 @@ pub fn prepare(events: &[DiagEvent]) -> Option<Prepared> {
                         sog_mps: sog,
                         cog_rad: cog,
                         heading_rad: f.heading_rad.filter(|v| v.is_finite()).map(wrap_pi),
+                        yaw_rate_radps: f.yaw_rate_radps.filter(|v| v.is_finite()),
                         stw_mps: near_stw,
                     },
                     shafts_radps: (samples > 0)

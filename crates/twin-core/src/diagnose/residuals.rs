@@ -9,11 +9,11 @@ pub struct InnovationRecord {
     pub time_s: f64,
     /// Innovation per measurement component (0 where missing), in the
     /// measurement's units.
-    pub innovation: [f64; 6],
+    pub innovation: [f64; COMPONENT_COUNT],
     /// Its predicted standard deviation per component.
-    pub sigma: [f64; 6],
+    pub sigma: [f64; COMPONENT_COUNT],
     /// Which components were measured.
-    pub available: [bool; 6],
+    pub available: [bool; COMPONENT_COUNT],
     /// Normalised innovation squared of the step, and its degrees of freedom.
     pub nis: f64,
     /// Degrees of freedom of `nis`.
@@ -24,7 +24,11 @@ pub struct InnovationRecord {
 }
 
 /// Names of the measurement components, in record order.
-pub const COMPONENTS: [&str; 6] = ["north", "east", "sog", "cog", "heading", "stw"];
+pub const COMPONENTS: [&str; COMPONENT_COUNT] =
+    ["north", "east", "sog", "cog", "heading", "stw", "yaw_rate"];
+
+/// Number of measurement components a record holds.
+pub const COMPONENT_COUNT: usize = 7;
 /// Names of the signatures, in record order.
 pub const SIGNATURES: [&str; 6] = [
     "sin_heading",
@@ -52,19 +56,19 @@ pub struct ResidualSummary {
     /// Steps summarised.
     pub steps: usize,
     /// Mean innovation per component (measurement units).
-    pub mean: [f64; 6],
+    pub mean: [f64; COMPONENT_COUNT],
     /// Mean normalised innovation per component, in standard errors of the
     /// mean (|z| > 3: a bias).
-    pub bias_z: [f64; 6],
+    pub bias_z: [f64; COMPONENT_COUNT],
     /// RMS innovation per component.
-    pub rms: [f64; 6],
+    pub rms: [f64; COMPONENT_COUNT],
     /// Lag-1 autocorrelation of the normalised innovation per component
     /// (white: near 0).
-    pub lag1: [f64; 6],
+    pub lag1: [f64; COMPONENT_COUNT],
     /// Mean NIS per degree of freedom (consistent: near 1).
     pub nis_per_dof: f64,
     /// Which components were measured at all.
-    pub measured: [bool; 6],
+    pub measured: [bool; COMPONENT_COUNT],
     /// The strongest correlations with signatures, largest first.
     pub signatures: Vec<SignatureCorrelation>,
 }
@@ -93,13 +97,13 @@ fn pearson(x: &[f64], y: &[f64]) -> f64 {
 
 /// Summarises records.
 pub fn summarise(records: &[InnovationRecord]) -> ResidualSummary {
-    let mut mean = [0.0; 6];
-    let mut bias_z = [0.0; 6];
-    let mut rms = [0.0; 6];
-    let mut lag1 = [0.0; 6];
-    let mut measured = [false; 6];
+    let mut mean = [0.0; COMPONENT_COUNT];
+    let mut bias_z = [0.0; COMPONENT_COUNT];
+    let mut rms = [0.0; COMPONENT_COUNT];
+    let mut lag1 = [0.0; COMPONENT_COUNT];
+    let mut measured = [false; COMPONENT_COUNT];
     let mut signatures = Vec::new();
-    for c in 0..6 {
+    for c in 0..COMPONENT_COUNT {
         let vals: Vec<(usize, f64, f64)> = records
             .iter()
             .enumerate()
@@ -169,9 +173,17 @@ mod tests {
                 InnovationRecord {
                     time_s: t,
                     // SOG innovation grows with speed (a scale error), north is white.
-                    innovation: [noise * 0.3, 0.0, 0.05 * speed + 0.01 * noise, 0.0, 0.0, 0.0],
-                    sigma: [0.3, 0.3, 0.05, 0.02, 0.01, 0.1],
-                    available: [true, false, true, false, false, false],
+                    innovation: [
+                        noise * 0.3,
+                        0.0,
+                        0.05 * speed + 0.01 * noise,
+                        0.0,
+                        0.0,
+                        0.0,
+                        0.0,
+                    ],
+                    sigma: [0.3, 0.3, 0.05, 0.02, 0.01, 0.1, 0.01],
+                    available: [true, false, true, false, false, false, false],
                     nis: 2.0,
                     dof: 2,
                     signatures: [0.0, 1.0, speed, 0.0, 0.0, t],

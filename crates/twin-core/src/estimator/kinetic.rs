@@ -1,17 +1,32 @@
 //! The extended twin as an estimator base: the Otter's kinetic model
-//! ([`OtterTwin<8>`]) driven by the measured shaft speeds, estimating each
-//! propeller's loss and, where asked, the water current; optionally with
-//! sensor effects in its measurement (`diagnose`'s hypotheses).
+//! ([`OtterTwin`]) driven by the measured shaft speeds, estimating each
+//! propeller's loss together with what the vessel's profile may have wrong
+//! (its surge and yaw damping), the water current and a heading sensor's
+//! offset; optionally with sensor effects in its measurement (`diagnose`'s
+//! hypotheses). It also reads the losses off an estimate as a controller
+//! needs them ([`LossReading`]): each loss with its honest uncertainty, and
+//! each propeller's effectiveness relative to the other, which the yaw
+//! balance measures even when the losses' common part cannot be told from
+//! the hull's drag.
 
 use nalgebra::{SMatrix, SVector};
 
-use super::{CourseGate, FaultPrior, LocalFix};
+use super::{CourseGate, Learnt, LocalFix};
 use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
 use crate::model::Measurement;
 use crate::models::effects::SensorEffects;
-use crate::models::otter_twin::{OtterTwin, ShaftSpeeds, idx, meas};
+use crate::models::otter_twin::{
+    FAULTS, Faults, MEASUREMENTS, OtterTwin, STATES, ShaftSpeeds, State, fault, idx, meas,
+};
 use crate::otter::OtterParams;
 use crate::sample::PropellerSpeeds;
+
+/// The kinetic base's filter.
+pub type KineticFilter = Aekf<OtterTwin, STATES, MEASUREMENTS, FAULTS>;
+/// The kinetic base's estimate.
+pub type KineticState = AekfState<STATES, MEASUREMENTS, FAULTS>;
+/// The kinetic base's step report.
+pub type KineticReport = StepReport<MEASUREMENTS, FAULTS>;
 
 /// The extended twin's settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -19,65 +34,108 @@ pub struct KineticConfig {
     /// The vessel's parameters.
     pub params: OtterParams,
     /// The filter's tuning.
-    pub filter: AekfConfig<8, 5, 2>,
+    pub filter: AekfConfig<STATES, MEASUREMENTS, FAULTS>,
     /// Initial standard deviation of the water current estimate, m/s.
     pub initial_current_sigma_mps: f64,
     /// Estimate the water current (off: the current is held at zero).
     pub estimate_current: bool,
+    /// Initial standard deviation of the heading sensor's offset, rad.
+    pub initial_heading_bias_sigma_rad: f64,
+    /// How far the profile's surge damping, yaw damping, thrust coefficient
+    /// and mass may be from the vessel's, as standard deviations of their
+    /// relative errors: the prior of the profile-error faults. An
+    /// uncalibrated profile is uncertain by some 25 %; one identified from a
+    /// trial by what the identification says.
+    pub profile_sigma: [f64; 4],
     /// Propeller data older than this stop the extended twin, s.
     pub max_propeller_age_s: f64,
-    /// With the current estimated, a straight run cannot tell a loss shared by
-    /// both propellers from a current along the track (both slow the vessel
-    /// alike); only turning separates them. The losses count as excited only
-    /// while the heading over the filter's memory has spread at least this
-    /// much: `1 - |mean of (cos psi, sin psi)|`, 0.05 being about a 65 deg arc.
-    pub min_heading_spread: f64,
+    /// A propeller's loss counts as excited while the data pin it down to
+    /// this standard deviation or better, with the other faults (the other
+    /// loss, the profile's errors) unknown.
+    pub excitation_sigma: f64,
+    /// The same for its loss relative to the other propeller.
+    pub relative_excitation_sigma: f64,
+    /// How much two propellers of one make differ when both are healthy
+    /// (thrust coefficients, shaft-speed sensors, their distance from the
+    /// centre line), as a standard deviation of their relative
+    /// effectiveness: the published relative loss is never surer than this.
+    pub propeller_mismatch_sigma: f64,
 }
 
 impl KineticConfig {
-    /// The Otter with 5 Hz GNSS (0.3 m, 0.05 m/s) and heading, if any, at
-    /// 0.5 deg, in sheltered harbour water.
+    /// The Otter with 5 Hz GNSS (0.3 m, 0.05 m/s), a heading sensor, if
+    /// any, at 0.5 deg, and a rate gyro, if any, at 0.5 deg/s, in sheltered
+    /// harbour water.
     ///
     /// Process noise: the kinematics are exact (tiny noise on position and
     /// heading); the velocities take the random forces of harbour water as
     /// white accelerations of density `q = M^-1 diag(2 F^2 T) M^-T` for gusts
     /// and chop of 3 N surge, 4 N sway, 0.5 N m yaw with 2 s correlation (the
     /// simulator's default disturbance, `twin_sim::DisturbanceSpec`); the
-    /// current drifts slowly.
+    /// current and the heading sensor's offset drift slowly.
     pub fn otter() -> Self {
-        let mut q = SMatrix::<f64, 8, 8>::from_diagonal(&SVector::<f64, 8>::from_column_slice(&[
-            1e-6, 1e-6, 1e-7, // position and heading
-            4.9e-3, 2.5e-3, 7.8e-4, // surge, sway, yaw accelerations
-            1e-6, 1e-6, // current
+        let mut q = SMatrix::<f64, STATES, STATES>::from_diagonal(&SVector::<f64, STATES>::from([
+            1e-6,
+            1e-6,
+            1e-7, // position and heading
+            4.9e-3 * UNMODELLED_FORCE_FACTOR,
+            2.5e-3 * UNMODELLED_FORCE_FACTOR,
+            7.8e-4 * UNMODELLED_FORCE_FACTOR, // surge, sway, yaw accelerations
+            1e-6,
+            1e-6, // current
+            1e-8, // heading sensor offset
         ]));
         // The sway-yaw mass coupling turns a sway force into a yaw acceleration too.
-        q[(idx::V, idx::R)] = -7.7e-4;
-        q[(idx::R, idx::V)] = -7.7e-4;
-        let r = SVector::<f64, 5>::from_column_slice(&[
+        q[(idx::V, idx::R)] = -7.7e-4 * UNMODELLED_FORCE_FACTOR;
+        q[(idx::R, idx::V)] = -7.7e-4 * UNMODELLED_FORCE_FACTOR;
+        let r = SVector::<f64, MEASUREMENTS>::from([
             0.3 * 0.3,
             0.3 * 0.3,
             0.05 * 0.05,
             0.03 * 0.03,
             0.0087 * 0.0087,
+            0.0087 * 0.0087,
         ]);
+        let profile_sigma = [0.25, 0.25, 0.25, 0.25];
         Self {
             params: OtterParams::default(),
             filter: AekfConfig {
                 process_noise_density: q,
                 measurement_noise: SMatrix::from_diagonal(&r),
                 forgetting_time_constant_s: 60.0,
-                initial_fault_covariance: SMatrix::identity() * 0.1,
+                // The losses can change at any time; the profile's errors
+                // (and the mass) do not: they are remembered for an hour.
+                fault_memory_factor: Faults::from([1.0, 1.0, 60.0, 60.0, 60.0, 60.0]),
+                initial_fault_covariance: SMatrix::from_diagonal(&Faults::from([
+                    0.1,
+                    0.1,
+                    profile_sigma[0] * profile_sigma[0],
+                    profile_sigma[1] * profile_sigma[1],
+                    profile_sigma[2] * profile_sigma[2],
+                    profile_sigma[3] * profile_sigma[3],
+                ])),
                 anti_windup_ratio: 0.1,
                 excitation_sigma: 0.03,
                 noise_adaptation: None,
             },
             initial_current_sigma_mps: 0.5,
             estimate_current: true,
+            initial_heading_bias_sigma_rad: 10f64.to_radians(),
+            profile_sigma,
             max_propeller_age_s: 1.0,
-            min_heading_spread: 0.05,
+            excitation_sigma: 0.1,
+            relative_excitation_sigma: 0.05,
+            propeller_mismatch_sigma: 0.03,
         }
     }
 }
+
+/// How many times the harbour water's random forces the velocities' process
+/// noise allows: the rest is the part of the vessel's motion its profile
+/// does not model (a vessel whose mass, damping and thrust are each 20-30 %
+/// off its profile, the trust matrix in `tests/src/trust.rs`), which the
+/// filter must take as noise rather than pin on the losses.
+const UNMODELLED_FORCE_FACTOR: f64 = 5.0;
 
 /// How a part of the model enters a filter run: left out, estimated, or
 /// held at given values.
@@ -100,11 +158,17 @@ pub struct KineticOptions {
     pub current: Term<2>,
     /// The propeller losses `[port, starboard]`.
     pub losses: Term<2>,
+    /// The heading sensor's offset, rad.
+    pub heading_bias: Term<1>,
+    /// The relative errors of the profile's surge damping, yaw damping,
+    /// thrust coefficient and mass.
+    pub profile_errors: Term<4>,
 }
 
 impl KineticOptions {
-    /// The live twin's: no sensor effects, the losses estimated, the current
-    /// estimated or held at zero.
+    /// The live twin's: no sensor effects; the losses, the damping errors
+    /// and the heading sensor's offset estimated; the current estimated or
+    /// held at zero.
     pub fn live(estimate_current: bool) -> Self {
         Self {
             effects: SensorEffects::default(),
@@ -114,6 +178,8 @@ impl KineticOptions {
                 Term::Off
             },
             losses: Term::Free,
+            heading_bias: Term::Free,
+            profile_errors: Term::Free,
         }
     }
 }
@@ -121,9 +187,16 @@ impl KineticOptions {
 /// The kinetic base.
 #[derive(Debug, Clone)]
 pub struct KineticBase {
-    filter: Aekf<OtterTwin<8>, 8, 5, 2>,
+    filter: KineticFilter,
     options: KineticOptions,
     initial_current_sigma_mps: f64,
+    initial_heading_bias_sigma_rad: f64,
+    excitation_sigma: f64,
+    relative_excitation_sigma: f64,
+    propeller_mismatch_sigma: f64,
+    /// The variance of the losses' common part that no data resolve (see
+    /// [`KineticBase::losses`]).
+    common_mode_variance: f64,
     gate: CourseGate,
 }
 
@@ -131,11 +204,38 @@ pub struct KineticBase {
 /// variance so that the covariance stays positive definite.
 const HELD_VARIANCE: f64 = 1e-12;
 
+/// The losses as a controller reads them off an estimate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LossReading {
+    /// Loss of each propeller `[port, starboard]`.
+    pub loss: [f64; 2],
+    /// Its standard deviation, with every other fault (the other loss, the
+    /// damping errors) unknown: the marginal of the filter's covariance.
+    pub sigma: [f64; 2],
+    /// Covariance of the two losses.
+    pub covariance: [[f64; 2]; 2],
+    /// Each propeller's loss relative to the other:
+    /// `1 - (1 - loss_i) / (1 - loss_j)`, what the yaw balance measures
+    /// even where the common part of the losses cannot be told from the
+    /// hull's drag.
+    pub relative_loss: [f64; 2],
+    /// Its standard deviation (first order).
+    pub relative_sigma: [f64; 2],
+    /// Whether each loss on its own is excited: the data pin it down, with
+    /// the other faults unknown, to the configured standard deviation.
+    pub excited: [bool; 2],
+    /// Whether each relative loss is excited: its standard deviation is
+    /// within the configured bar. The side that lost thrust has the
+    /// narrower one (its relative loss divides by the healthy side's
+    /// effectiveness), so a loss is told before the other side's gain is.
+    pub relative_excited: [bool; 2],
+}
+
 impl KineticBase {
     /// The base of `config` with `options`, masking the course below
-    /// `gate`'s speed. A current that is not estimated has no process noise;
-    /// losses that are not estimated have no covariance (the filter then
-    /// holds them).
+    /// `gate`'s speed. A current or heading offset that is not estimated has
+    /// no process noise; faults that are not estimated have no covariance
+    /// (the filter then holds them).
     pub fn new(
         config: &KineticConfig,
         gate: CourseGate,
@@ -147,25 +247,47 @@ impl KineticBase {
                 filter.process_noise_density[(i, i)] = 0.0;
             }
         }
+        if options.heading_bias != Term::Free {
+            filter.process_noise_density[(idx::HEADING_BIAS, idx::HEADING_BIAS)] = 0.0;
+        }
+        let s0 = &mut filter.initial_fault_covariance;
+        let mut hold = |i: usize| {
+            s0.set_row(i, &SMatrix::<f64, 1, FAULTS>::zeros());
+            s0.set_column(i, &SVector::<f64, FAULTS>::zeros());
+        };
         if options.losses != Term::Free {
-            filter.initial_fault_covariance = SMatrix::zeros();
+            hold(fault::PORT);
+            hold(fault::STARBOARD);
+        }
+        if options.profile_errors != Term::Free {
+            hold(fault::SURGE_DAMPING);
+            hold(fault::YAW_DAMPING);
+            hold(fault::THRUST);
+            hold(fault::MASS);
         }
         let model = OtterTwin::new(config.params).with_effects(options.effects);
         Ok(Self {
             filter: Aekf::new(model, filter)?,
             options,
             initial_current_sigma_mps: config.initial_current_sigma_mps,
+            initial_heading_bias_sigma_rad: config.initial_heading_bias_sigma_rad,
+            excitation_sigma: config.excitation_sigma,
+            relative_excitation_sigma: config.relative_excitation_sigma,
+            propeller_mismatch_sigma: config.propeller_mismatch_sigma,
+            // The thrust coefficient's and the surge damping's errors both
+            // scale the thrust-to-resistance balance.
+            common_mode_variance: config.profile_sigma[0].powi(2) + config.profile_sigma[2].powi(2),
             gate,
         })
     }
 
     /// The filter.
-    pub fn filter(&self) -> &Aekf<OtterTwin<8>, 8, 5, 2> {
+    pub fn filter(&self) -> &KineticFilter {
         &self.filter
     }
 
     /// The model.
-    pub fn model(&self) -> &OtterTwin<8> {
+    pub fn model(&self) -> &OtterTwin {
         &self.filter.model
     }
 
@@ -174,16 +296,17 @@ impl KineticBase {
         &self.options
     }
 
-    /// `[north, east, sog, cog, heading]`; position always, the rest where
-    /// measured, the course only above the gate's speed.
-    pub fn measurement(&self, fix: &LocalFix) -> Measurement<5> {
+    /// `[north, east, sog, cog, heading, yaw rate]`; position always, the
+    /// rest where measured, the course only above the gate's speed.
+    pub fn measurement(&self, fix: &LocalFix) -> Measurement<MEASUREMENTS> {
         Measurement {
-            values: SVector::<f64, 5>::from_column_slice(&[
+            values: SVector::<f64, MEASUREMENTS>::from([
                 fix.position.north_m,
                 fix.position.east_m,
                 fix.sog_mps.unwrap_or(0.0),
                 fix.cog_rad.unwrap_or(0.0),
                 fix.heading_rad.unwrap_or(0.0),
+                fix.yaw_rate_radps.unwrap_or(0.0),
             ]),
             available: [
                 true,
@@ -191,19 +314,22 @@ impl KineticBase {
                 fix.sog_mps.is_some(),
                 self.gate.course_available(fix),
                 fix.heading_rad.is_some(),
+                fix.yaw_rate_radps.is_some(),
             ],
         }
     }
 
     /// The first estimate from a fix: position as measured; heading from the
     /// heading sensor (less its offset, if the effects have one), else the
-    /// course; surge speed from the speed over ground (less its scale);
-    /// sway and yaw rate zero; the current as its term says. The losses
-    /// start from `restored` where given (estimate and covariance), else
-    /// from none with the configured covariance, or at the values held.
-    pub fn prior(&self, fix: &LocalFix, restored: Option<FaultPrior<2>>) -> AekfState<8, 5, 2> {
+    /// course; surge speed from the speed over ground (less its scale); sway
+    /// zero; yaw rate from the gyro, else zero; the current and the heading
+    /// sensor's offset as their terms say, or as `restored` learnt them. The
+    /// faults start from `restored` where given (estimate, covariance and
+    /// anti-windup memory), else from none with the configured covariance,
+    /// or at the values held.
+    pub fn prior(&self, fix: &LocalFix, restored: Option<&Learnt<FAULTS>>) -> KineticState {
         let fx = &self.options.effects;
-        let mut x0 = SVector::<f64, 8>::zeros();
+        let mut x0 = State::zeros();
         x0[idx::NORTH] = fix.position.north_m;
         x0[idx::EAST] = fix.position.east_m;
         x0[idx::PSI] = fix
@@ -212,6 +338,7 @@ impl KineticBase {
             .or(fix.cog_rad)
             .unwrap_or(0.0);
         x0[idx::U] = fix.sog_mps.unwrap_or(0.0) / fx.sog_scale;
+        x0[idx::R] = fix.yaw_rate_radps.unwrap_or(0.0);
         let current_variance = match self.options.current {
             Term::Free => self.initial_current_sigma_mps.powi(2),
             Term::Off => HELD_VARIANCE,
@@ -221,45 +348,108 @@ impl KineticBase {
                 HELD_VARIANCE
             }
         };
+        let bias_variance = match self.options.heading_bias {
+            Term::Free => self.initial_heading_bias_sigma_rad.powi(2),
+            Term::Off => HELD_VARIANCE,
+            Term::Fixed([b]) => {
+                x0[idx::HEADING_BIAS] = b;
+                HELD_VARIANCE
+            }
+        };
         let r = &self.filter.config.measurement_noise;
-        let heading_variance = if fix.heading_rad.is_some() {
-            r[(meas::HEADING, meas::HEADING)]
+        // Not knowing the sensor's offset, the heading is as uncertain as
+        // it (set below, once the offset's prior is known).
+        let heading_variance = 0.5f64.powi(2);
+        let yaw_rate_variance = if fix.yaw_rate_radps.is_some() {
+            r[(meas::YAW_RATE, meas::YAW_RATE)]
         } else {
-            0.5f64.powi(2)
+            0.1f64.powi(2)
         };
         // The surge speed through the water is the speed over ground less
         // the current along the track: it is as uncertain as the current.
-        let p0 = SMatrix::<f64, 8, 8>::from_diagonal(&SVector::<f64, 8>::from_column_slice(&[
+        let mut p0 = SMatrix::<f64, STATES, STATES>::from_diagonal(&SVector::from([
             r[(meas::NORTH, meas::NORTH)],
             r[(meas::EAST, meas::EAST)],
             heading_variance,
             0.3f64.powi(2) + current_variance,
             0.3f64.powi(2),
-            0.1f64.powi(2),
+            yaw_rate_variance,
             current_variance,
             current_variance,
+            bias_variance,
         ]));
+        // What was learnt of the surroundings, where they are estimated.
+        if let Some(learnt) = restored.and_then(|r| r.surroundings) {
+            let slots = [
+                (idx::CURRENT_NORTH, self.options.current == Term::Free),
+                (idx::CURRENT_EAST, self.options.current == Term::Free),
+                (idx::HEADING_BIAS, self.options.heading_bias == Term::Free),
+            ];
+            let values = [
+                learnt.current_mps[0],
+                learnt.current_mps[1],
+                learnt.heading_bias_rad,
+            ];
+            for (a, (ia, free_a)) in slots.iter().enumerate() {
+                if !free_a {
+                    continue;
+                }
+                x0[*ia] = values[a];
+                for (b, (ib, free_b)) in slots.iter().enumerate() {
+                    if *free_b {
+                        p0[(*ia, *ib)] = learnt.covariance[a][b];
+                    }
+                }
+            }
+            if self.options.current == Term::Free {
+                let c = learnt.covariance;
+                p0[(idx::U, idx::U)] = 0.3f64.powi(2) + c[0][0].max(c[1][1]);
+            }
+        }
+        let bias_variance = p0[(idx::HEADING_BIAS, idx::HEADING_BIAS)];
+        if fix.heading_rad.is_some() {
+            // The heading is the sensor's reading less the offset.
+            let bias = x0[idx::HEADING_BIAS];
+            x0[idx::PSI] = crate::geodesy::wrap_pi(x0[idx::PSI] - bias);
+            p0[(idx::PSI, idx::PSI)] = r[(meas::HEADING, meas::HEADING)] + bias_variance;
+            p0[(idx::PSI, idx::HEADING_BIAS)] = -bias_variance;
+            p0[(idx::HEADING_BIAS, idx::PSI)] = -bias_variance;
+        }
         let config = &self.filter.config;
-        match (self.options.losses, restored) {
-            (Term::Free, Some(r)) => {
+        let mut theta0 = Faults::zeros();
+        if let Term::Fixed(l) = self.options.losses {
+            theta0[fault::PORT] = l[0];
+            theta0[fault::STARBOARD] = l[1];
+        }
+        if let Term::Fixed(d) = self.options.profile_errors {
+            theta0[fault::SURGE_DAMPING] = d[0];
+            theta0[fault::YAW_DAMPING] = d[1];
+            theta0[fault::THRUST] = d[2];
+            theta0[fault::MASS] = d[3];
+        }
+        match restored {
+            Some(r)
+                if self.options.losses == Term::Free
+                    && self.options.profile_errors == Term::Free =>
+            {
                 let mut state = AekfState::new(config, x0, p0, r.theta);
                 state.s = r.covariance;
+                state.held_information = r.held_information;
                 state
             }
-            (Term::Fixed(l), _) => AekfState::new(config, x0, p0, SVector::from(l)),
-            _ => AekfState::new(config, x0, p0, SVector::zeros()),
+            _ => AekfState::new(config, x0, p0, theta0),
         }
     }
 
     /// One step to `fix`, `dt_s` after the estimate, driven by `input`. A
-    /// current that is off stays exactly zero.
+    /// current or heading offset that is off stays exactly zero.
     pub fn step(
         &self,
-        state: &mut AekfState<8, 5, 2>,
+        state: &mut KineticState,
         input: &ShaftSpeeds,
         fix: &LocalFix,
         dt_s: f64,
-    ) -> Result<StepReport<5, 2>, AekfError> {
+    ) -> Result<KineticReport, AekfError> {
         let report = self
             .filter
             .step(state, input, &self.measurement(fix), dt_s)?;
@@ -267,16 +457,83 @@ impl KineticBase {
             state.x[idx::CURRENT_NORTH] = 0.0;
             state.x[idx::CURRENT_EAST] = 0.0;
         }
+        if self.options.heading_bias == Term::Off {
+            state.x[idx::HEADING_BIAS] = 0.0;
+        }
         Ok(report)
+    }
+
+    /// The losses of `state` as a controller reads them ([`LossReading`]).
+    pub fn losses(&self, state: &KineticState) -> LossReading {
+        let t = &state.theta;
+        let s = &state.s;
+        let (p, sb) = (fault::PORT, fault::STARBOARD);
+        let loss = [t[p], t[sb]];
+        let filter_covariance = [[s[(p, p)], s[(p, sb)]], [s[(sb, p)], s[(sb, sb)]]];
+        // The part of the losses common to both propellers is known only as
+        // well as the profile's thrust-to-resistance balance (docs/model.md
+        // section 8): what the filter learns of it comes from how quickly
+        // the vessel answers its propellers, which waves, wakes and every
+        // unmodelled motion blur. The published uncertainty is therefore
+        // never narrower along the common part than the profile's: a
+        // common scale error c of both effectivenesses moves each loss by
+        // -(1 - loss_i) c. The relative losses are untouched (a common scale
+        // cancels in them).
+        let e = [1.0 - loss[0], 1.0 - loss[1]];
+        let floor = self.common_mode_variance;
+        let covariance: [[f64; 2]; 2] = std::array::from_fn(|i| {
+            std::array::from_fn(|j| filter_covariance[i][j] + floor * e[i] * e[j])
+        });
+        let sigma = [
+            covariance[0][0].max(0.0).sqrt(),
+            covariance[1][1].max(0.0).sqrt(),
+        ];
+        // Relative loss of i against j: 1 - e_i / e_j, e = 1 - loss; its
+        // gradient in (loss_i, loss_j) is (1 / e_j, -e_i / e_j^2).
+        let relative = |i: usize, j: usize| {
+            let (ei, ej) = (1.0 - loss[i], (1.0 - loss[j]).max(1e-3));
+            let rel = 1.0 - ei / ej;
+            let g = [1.0 / ej, -ei / (ej * ej)];
+            let c = &filter_covariance;
+            let var = g[0] * g[0] * c[i][i] + 2.0 * g[0] * g[1] * c[i][j] + g[1] * g[1] * c[j][j];
+            (rel, var.max(0.0).sqrt())
+        };
+        let (rp, sp) = relative(0, 1);
+        let (rs, ss) = relative(1, 0);
+        // Excitation is what the data tell; the published uncertainty adds
+        // what no data of this vessel can: how unlike its propellers are.
+        let published = |s: f64| s.hypot(self.propeller_mismatch_sigma);
+        LossReading {
+            loss,
+            sigma,
+            covariance,
+            relative_loss: [rp, rs],
+            relative_sigma: [published(sp), published(ss)],
+            // The data pin a loss down when its standard deviation, with
+            // everything else unknown, is within the bar: the prior alone
+            // never is.
+            excited: sigma.map(|s| s <= self.excitation_sigma),
+            relative_excited: [sp, ss].map(|s| s <= self.relative_excitation_sigma),
+        }
     }
 }
 
-/// The shaft-speed samples since the last fix: the kinetic base's input is
-/// their mean over the interval.
+/// The shaft-speed samples around the last interval between fixes: the
+/// kinetic base's input is the mean shaft speed over the interval.
+///
+/// The mean is of the samples' piecewise-linear interpolant over the
+/// interval, the sample before it included: a logger that writes the
+/// shaft speed at each fix's instant (before or after the fix), or faster,
+/// gives the same mean, and the change of shaft speed within the interval
+/// is not shifted by half an interval. Without samples in the interval the
+/// last one holds while it is at most `max_age_s` old.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct ShaftAccumulator {
-    sum_port: f64,
-    sum_stb: f64,
+    /// Time-weighted integral of each shaft speed since `start`, rad.
+    integral: [f64; 2],
+    /// Where the integral starts, s.
+    start_s: Option<f64>,
+    /// Samples since the last [`Self::take`].
     count: u32,
     last: Option<PropellerSpeeds>,
 }
@@ -284,8 +541,24 @@ pub struct ShaftAccumulator {
 impl ShaftAccumulator {
     /// Adds a sample.
     pub fn push(&mut self, p: &PropellerSpeeds) {
-        self.sum_port += p.port_radps;
-        self.sum_stb += p.starboard_radps;
+        if let Some(prev) = self.last
+            && p.time_s > prev.time_s
+        {
+            // Trapezoid from the later of the previous sample and the
+            // interval's start.
+            let from = self.start_s.map_or(prev.time_s, |s| s.max(prev.time_s));
+            if p.time_s > from {
+                let w = (from - prev.time_s) / (p.time_s - prev.time_s);
+                let at_from = [
+                    prev.port_radps + w * (p.port_radps - prev.port_radps),
+                    prev.starboard_radps + w * (p.starboard_radps - prev.starboard_radps),
+                ];
+                let span = p.time_s - from;
+                self.integral[0] += 0.5 * (at_from[0] + p.port_radps) * span;
+                self.integral[1] += 0.5 * (at_from[1] + p.starboard_radps) * span;
+                self.start_s.get_or_insert(from);
+            }
+        }
         self.count += 1;
         self.last = Some(*p);
     }
@@ -295,24 +568,35 @@ impl ShaftAccumulator {
         self.count
     }
 
-    /// The mean of the samples since the last call and starts a new
-    /// interval; without samples in the interval, the last sample if it is
-    /// at most `max_age_s` older than `time_s`, else `None`.
+    /// The mean shaft speeds over the interval ending at `time_s` and starts
+    /// the next interval there; without a sample in the interval, the last
+    /// sample if it is at most `max_age_s` older than `time_s`, else `None`.
     pub fn take(&mut self, time_s: f64, max_age_s: f64) -> Option<ShaftSpeeds> {
-        let acc = std::mem::take(self);
-        self.last = acc.last;
-        if acc.count > 0 {
-            Some(ShaftSpeeds {
-                port_radps: acc.sum_port / acc.count as f64,
-                starboard_radps: acc.sum_stb / acc.count as f64,
-            })
-        } else {
-            acc.last
-                .filter(|p| time_s - p.time_s <= max_age_s)
-                .map(|p| ShaftSpeeds {
-                    port_radps: p.port_radps,
-                    starboard_radps: p.starboard_radps,
+        let last = self.last?;
+        let fresh = self.count > 0;
+        let result = match self.start_s {
+            Some(start) if fresh && time_s > start => {
+                // The last sample holds to the end of the interval.
+                let mut integral = self.integral;
+                let end = time_s.max(last.time_s);
+                integral[0] += last.port_radps * (end - last.time_s);
+                integral[1] += last.starboard_radps * (end - last.time_s);
+                let span = end - start;
+                Some(ShaftSpeeds {
+                    port_radps: integral[0] / span,
+                    starboard_radps: integral[1] / span,
                 })
-        }
+            }
+            _ if fresh || time_s - last.time_s <= max_age_s => Some(ShaftSpeeds {
+                port_radps: last.port_radps,
+                starboard_radps: last.starboard_radps,
+            }),
+            _ => None,
+        };
+        // The next interval starts at this fix.
+        self.integral = [0.0; 2];
+        self.start_s = Some(time_s.max(last.time_s));
+        self.count = 0;
+        result
     }
 }

@@ -24,7 +24,10 @@ mod kinetic;
 pub(crate) mod seed;
 mod water;
 
-pub use kinetic::{KineticBase, KineticConfig, KineticOptions, ShaftAccumulator, Term};
+pub use kinetic::{
+    KineticBase, KineticConfig, KineticFilter, KineticOptions, KineticReport, KineticState,
+    LossReading, ShaftAccumulator, Term,
+};
 pub use seed::{SeedBase, SeedConfig, SeedInputs};
 pub use water::{WaterBase, WaterOptions};
 
@@ -45,6 +48,8 @@ pub struct LocalFix {
     pub cog_rad: Option<f64>,
     /// Heading, rad.
     pub heading_rad: Option<f64>,
+    /// Yaw rate from a rate gyro, rad/s.
+    pub yaw_rate_radps: Option<f64>,
     /// Speed through water, m/s.
     pub stw_mps: Option<f64>,
 }
@@ -63,6 +68,7 @@ impl LocalFix {
             sog_mps: fix.sog_mps,
             cog_rad: fix.cog_rad.map(wrap_pi),
             heading_rad: fix.heading_rad.map(wrap_pi),
+            yaw_rate_radps: fix.yaw_rate_radps,
             stw_mps: None,
         }
     }
@@ -82,12 +88,28 @@ impl CourseGate {
     }
 }
 
-/// A fault prior restored from a calibration: the estimate and its
-/// covariance.
+/// What an estimator learnt about a vessel, to start a new estimate from:
+/// the faults with their covariance and anti-windup memory, and for the
+/// extended twin the surroundings it had estimated.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FaultPrior<const P: usize> {
+pub struct Learnt<const P: usize> {
     /// The fault estimate.
     pub theta: nalgebra::SVector<f64, P>,
     /// Its covariance.
     pub covariance: nalgebra::SMatrix<f64, P, P>,
+    /// The information held per fault (the anti-windup memory).
+    pub held_information: nalgebra::SVector<f64, P>,
+    /// The water current and the heading sensor's offset.
+    pub surroundings: Option<Surroundings>,
+}
+
+/// What the extended twin learnt of the water and of its heading sensor.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Surroundings {
+    /// Water current `[north, east]`, m/s.
+    pub current_mps: [f64; 2],
+    /// Heading sensor minus true heading, rad.
+    pub heading_bias_rad: f64,
+    /// Covariance of `[current north, current east, heading bias]`.
+    pub covariance: [[f64; 3]; 3],
 }

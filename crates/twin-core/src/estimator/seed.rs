@@ -5,9 +5,9 @@
 //! comparison: docs/model.md section 5 explains why it cannot see a thrust
 //! loss).
 
-use nalgebra::{SMatrix, Vector4};
+use nalgebra::{SMatrix, SVector, Vector4};
 
-use super::{CourseGate, FaultPrior, LocalFix};
+use super::{CourseGate, Learnt, LocalFix};
 use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
 use crate::inputs::{Butterworth, InputConfigError, InputDerivationConfig, InputDeriver, LowPass};
 use crate::model::Measurement;
@@ -38,6 +38,7 @@ impl SeedConfig {
                 process_noise_density: SMatrix::identity() * (0.01 / dt),
                 measurement_noise: SMatrix::identity() * 0.04,
                 forgetting_time_constant_s: -dt / 0.995_f64.ln(),
+                fault_memory_factor: SVector::repeat(1.0),
                 initial_fault_covariance: SMatrix::identity() * 0.1,
                 anti_windup_ratio: 0.1,
                 excitation_sigma: 0.02,
@@ -93,7 +94,7 @@ impl SeedBase {
     /// The first estimate from a fix: the state as measured, its covariance
     /// the measurement noise, the faults from `restored` (else none, with the
     /// configured covariance).
-    pub fn prior(&self, fix: &LocalFix, restored: Option<FaultPrior<2>>) -> AekfState<4, 4, 2> {
+    pub fn prior(&self, fix: &LocalFix, restored: Option<&Learnt<2>>) -> AekfState<4, 4, 2> {
         let x0 = Vector4::new(
             fix.position.north_m,
             fix.position.east_m,
@@ -105,6 +106,7 @@ impl SeedBase {
         let mut state = AekfState::new(config, x0, config.measurement_noise, theta0);
         if let Some(r) = restored {
             state.s = r.covariance;
+            state.held_information = r.held_information;
         }
         state
     }

@@ -61,6 +61,7 @@ impl WaterBase {
             process_noise_density: SMatrix::from_diagonal(&q),
             measurement_noise: SMatrix::from_diagonal(&r),
             forgetting_time_constant_s: 60.0,
+            fault_memory_factor: SVector::repeat(1.0),
             initial_fault_covariance: SMatrix::zeros(),
             anti_windup_ratio: 0.1,
             excitation_sigma: 0.03,

@@ -1,20 +1,41 @@
 //! The extended twin: the Otter's kinetic model in surge, sway and yaw,
-//! driven by the measured propeller speeds, estimating the loss of each
-//! propeller directly (`theta = [theta_port, theta_starboard]`) and,
-//! optionally, the water current (MODEL.md section 5).
+//! driven by the measured propeller speeds. It estimates each propeller's
+//! loss, and beside it what a real vessel and its sensors get wrong about
+//! the model's numbers: the hull's surge and yaw damping as the profile
+//! gives them, a heading sensor's offset, and the water current
+//! (docs/model.md sections 5 and 8).
 //!
-//! State `[north_m, east_m, psi_rad, u_mps, v_mps, r_radps, current_north_mps,
-//! current_east_mps]` (the last two only in [`OtterTwin<8>`]); `u`, `v` are the
-//! velocities through the water in the body frame. Measurement `[north_m,
-//! east_m, sog_mps, cog_rad, heading_rad]` (any may be missing). Input: the two
-//! shaft speeds.
+//! State (9) `[north_m, east_m, psi_rad, u_mps, v_mps, r_radps,
+//! current_north_mps, current_east_mps, heading_bias_rad]`; `u`, `v` are the
+//! velocities through the water in the body frame; the heading bias is what
+//! the heading sensor reads minus the true heading. Faults (4) `theta =
+//! [loss_port, loss_starboard, surge_damping, yaw_damping]`: the two losses
+//! of effectiveness and the relative errors of the linear surge damping and
+//! of the (linear and quadratic) yaw damping, `X_u (1 + theta_2)`,
+//! `N_r (1 + theta_3)`. Measurement (6) `[north_m, east_m, sog_mps, cog_rad,
+//! heading_rad, yaw_rate_radps]` (any may be missing). Input: the two shaft
+//! speeds.
 //!
 //! ```text
-//! eta'  = R(psi) [u, v] + c,   psi' = r,   c' = 0 (+ noise)
-//! M nu' = tau(n, theta) - C(nu) nu + [X_u u, Y_v v + Y_cf, N_r (1 + 10|r|) r + N_cf]
-//! tau   = [(1-th_p) T_p + (1-th_s) T_s, 0, b ((1-th_p) T_p - (1-th_s) T_s)],  T = k n|n|
+//! eta'  = R(psi) [u, v] + c,   psi' = r,   c' = b' = 0 (+ noise)
+//! (1 + th_m) M nu' = tau(n, theta) - C(nu) nu + [X_u (1 + th_u) u, Y_v v + Y_cf, N_r (1 + th_r) (1 + 10|r|) r + N_cf]
+//! tau   = [(1-th_p) T_p + (1-th_s) T_s, 0, b ((1-th_p) T_p - (1-th_s) T_s)],  T = (1 + th_k) k n|n|
 //! C(nu) nu = [-m x_g r^2 - (m + a22) v r, (m + a11) u r, m x_g u r + (a22 - a11) u v]
+//! heading = psi + b,  yaw rate = r
 //! ```
+//!
+//! Why the damping and thrust errors are estimated with the losses: a hull
+//! that is draggier than the profile, propellers that give less thrust than
+//! the profile says, or both propellers having lost some, slow the vessel
+//! alike on a straight run; only the yaw response to differential thrust
+//! tells them apart, and only as well as the yaw damping is known; and
+//! scaling the mass, the damping and the thrust together changes no motion
+//! at all. With the profile's errors among the filter's unknowns,
+//! the covariance of the losses carries that ambiguity instead of claiming
+//! a certainty the data do not give (docs/model.md section 8). Why the
+//! heading bias is a state: a heading sensor off by a few degrees, read as
+//! exact, makes the model's sway and yaw balance wrong in every turn, and
+//! the filter would explain it with a one-sided loss.
 //!
 //! Writing the kinetics in the velocity through the water is exact for a
 //! constant, irrotational current (Fossen 2021, property 10.1). The cross-flow
@@ -35,7 +56,7 @@
 //! fault estimate settles where the innovations average zero); the
 //! Jacobians only steer the gains.
 
-use nalgebra::{Matrix3, Matrix3x2, SMatrix, SVector, Vector2, Vector3};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
 
 use crate::geodesy::wrap_pi;
 use crate::linalg::{Pattern, mul, mul_sparse_left};
@@ -46,6 +67,72 @@ use crate::trig;
 
 /// Longest integration sub-step, seconds.
 pub const MAX_SUBSTEP_S: f64 = 0.2;
+
+/// Number of states.
+pub const STATES: usize = 9;
+/// Number of measurement components.
+pub const MEASUREMENTS: usize = 6;
+/// Number of faults.
+pub const FAULTS: usize = 6;
+
+/// The state vector.
+pub type State = SVector<f64, STATES>;
+/// The fault vector.
+pub type Faults = SVector<f64, FAULTS>;
+
+/// Index of each component in the state vector.
+pub mod idx {
+    /// North position, m.
+    pub const NORTH: usize = 0;
+    /// East position, m.
+    pub const EAST: usize = 1;
+    /// Heading, rad.
+    pub const PSI: usize = 2;
+    /// Surge velocity through the water, m/s.
+    pub const U: usize = 3;
+    /// Sway velocity through the water, m/s.
+    pub const V: usize = 4;
+    /// Yaw rate, rad/s.
+    pub const R: usize = 5;
+    /// Water current, north component, m/s.
+    pub const CURRENT_NORTH: usize = 6;
+    /// Water current, east component, m/s.
+    pub const CURRENT_EAST: usize = 7;
+    /// Heading sensor minus true heading, rad.
+    pub const HEADING_BIAS: usize = 8;
+}
+
+/// Index of each measurement component.
+pub mod meas {
+    /// North position, m.
+    pub const NORTH: usize = 0;
+    /// East position, m.
+    pub const EAST: usize = 1;
+    /// Speed over ground, m/s.
+    pub const SOG: usize = 2;
+    /// Course over ground, rad.
+    pub const COG: usize = 3;
+    /// Heading, rad.
+    pub const HEADING: usize = 4;
+    /// Yaw rate from a rate gyro, rad/s.
+    pub const YAW_RATE: usize = 5;
+}
+
+/// Index of each fault.
+pub mod fault {
+    /// Loss of effectiveness of the port propeller.
+    pub const PORT: usize = 0;
+    /// Loss of effectiveness of the starboard propeller.
+    pub const STARBOARD: usize = 1;
+    /// Relative error of the linear surge damping (hull resistance).
+    pub const SURGE_DAMPING: usize = 2;
+    /// Relative error of the yaw damping.
+    pub const YAW_DAMPING: usize = 3;
+    /// Relative error of both propellers' thrust coefficient.
+    pub const THRUST: usize = 4;
+    /// Relative error of the mass matrix (rigid body and added mass).
+    pub const MASS: usize = 5;
+}
 
 /// A pattern with `true` at the listed `(row, column)` entries.
 const fn pattern<const R: usize, const C: usize>(entries: &[(usize, usize)]) -> Pattern<R, C> {
@@ -58,10 +145,11 @@ const fn pattern<const R: usize, const C: usize>(entries: &[(usize, usize)]) -> 
     p
 }
 
-/// The entries of the continuous Jacobian `A = d xdot / d x` (8 states) that
-/// may be non-zero: the kinematics (position from heading, velocities and
-/// current; heading from yaw rate) and the 3 x 3 block of the kinetics.
-const A_PATTERN: Pattern<8, 8> = {
+/// The entries of the continuous Jacobian `A = d xdot / d x` that may be
+/// non-zero: the kinematics (position from heading, velocities and current;
+/// heading from yaw rate) and the 3 x 3 block of the kinetics. The heading
+/// bias moves nothing.
+const A_PATTERN: Pattern<STATES, STATES> = {
     use idx::*;
     pattern(&[
         (NORTH, PSI),
@@ -85,10 +173,10 @@ const A_PATTERN: Pattern<8, 8> = {
     ])
 };
 
-/// The entries of a step's transition Jacobian `F` (8 states) that may be
-/// non-zero. Each sub-step's `I + h A + h^2 A^2 / 2` has this pattern, and
-/// products of such matrices keep it, so `F` (their product) does too.
-const F_PATTERN: Pattern<8, 8> = {
+/// The entries of a step's transition Jacobian `F` that may be non-zero.
+/// Each sub-step's `I + h A + h^2 A^2 / 2` has this pattern, and products of
+/// such matrices keep it, so `F` (their product) does too.
+const F_PATTERN: Pattern<STATES, STATES> = {
     use idx::*;
     pattern(&[
         (NORTH, NORTH),
@@ -118,20 +206,24 @@ const F_PATTERN: Pattern<8, 8> = {
         (R, R),
         (CURRENT_NORTH, CURRENT_NORTH),
         (CURRENT_EAST, CURRENT_EAST),
+        (HEADING_BIAS, HEADING_BIAS),
     ])
 };
 
-/// The entries of the observation Jacobian `H` (8 states) that may be
-/// non-zero without [`SensorEffects`]: the position from the position, the
-/// heading from the heading, and the speed and course over ground from the
-/// heading, the velocities through the water and the current.
-const H_PATTERN_WITHOUT_EFFECTS: Pattern<5, 8> = {
+/// The entries of the observation Jacobian `H` that may be non-zero without
+/// [`SensorEffects`]: the position from the position, the heading from the
+/// heading and its bias, the yaw rate from the yaw rate, and the speed and
+/// course over ground from the heading, the velocities through the water
+/// and the current.
+const H_PATTERN_WITHOUT_EFFECTS: Pattern<MEASUREMENTS, STATES> = {
     use idx::*;
     let velocity = [PSI, U, V, CURRENT_NORTH, CURRENT_EAST];
-    let mut p = [[false; 8]; 5];
+    let mut p = [[false; STATES]; MEASUREMENTS];
     p[meas::NORTH][NORTH] = true;
     p[meas::EAST][EAST] = true;
     p[meas::HEADING][PSI] = true;
+    p[meas::HEADING][HEADING_BIAS] = true;
+    p[meas::YAW_RATE][R] = true;
     let mut k = 0;
     while k < velocity.len() {
         p[meas::SOG][velocity[k]] = true;
@@ -141,11 +233,11 @@ const H_PATTERN_WITHOUT_EFFECTS: Pattern<5, 8> = {
     p
 };
 
-/// The entries of the observation Jacobian `H` (8 states) that may be
-/// non-zero, with or without [`SensorEffects`]: an antenna off the body
-/// origin and a latency make the position and the velocity over ground
-/// depend on heading, velocities, yaw rate and current.
-const H_PATTERN: Pattern<5, 8> = {
+/// The entries of the observation Jacobian `H` that may be non-zero, with
+/// or without [`SensorEffects`]: an antenna off the body origin and a
+/// latency make the position and the velocity over ground depend on
+/// heading, velocities, yaw rate and current.
+const H_PATTERN: Pattern<MEASUREMENTS, STATES> = {
     use idx::*;
     let velocity = [PSI, U, V, R, CURRENT_NORTH, CURRENT_EAST];
     let mut p = H_PATTERN_WITHOUT_EFFECTS;
@@ -160,11 +252,9 @@ const H_PATTERN: Pattern<5, 8> = {
     p
 };
 
-/// The `R x C` block at rows `r0..`, columns `c0..` of a pattern over the
-/// 8 states: the first six rows and columns for the 6-state twin, and the
-/// 3 x 3 blocks that [`SubstepJacobians`] multiplies.
-const fn block<const R: usize, const C: usize, const RF: usize>(
-    full: &Pattern<RF, 8>,
+/// The `R x C` block at rows `r0..`, columns `c0..` of a state pattern.
+const fn block<const R: usize, const C: usize>(
+    full: &Pattern<STATES, STATES>,
     r0: usize,
     c0: usize,
 ) -> Pattern<R, C> {
@@ -198,44 +288,9 @@ pub struct ShaftSpeeds {
     pub starboard_radps: f64,
 }
 
-/// Index of each component in the 8-state vector (the 6-state twin is its
-/// first six components).
-pub mod idx {
-    /// North position, m.
-    pub const NORTH: usize = 0;
-    /// East position, m.
-    pub const EAST: usize = 1;
-    /// Heading, rad.
-    pub const PSI: usize = 2;
-    /// Surge velocity through the water, m/s.
-    pub const U: usize = 3;
-    /// Sway velocity through the water, m/s.
-    pub const V: usize = 4;
-    /// Yaw rate, rad/s.
-    pub const R: usize = 5;
-    /// Water current, north component, m/s.
-    pub const CURRENT_NORTH: usize = 6;
-    /// Water current, east component, m/s.
-    pub const CURRENT_EAST: usize = 7;
-}
-
-/// Index of each measurement component.
-pub mod meas {
-    /// North position, m.
-    pub const NORTH: usize = 0;
-    /// East position, m.
-    pub const EAST: usize = 1;
-    /// Speed over ground, m/s.
-    pub const SOG: usize = 2;
-    /// Course over ground, rad.
-    pub const COG: usize = 3;
-    /// Heading, rad.
-    pub const HEADING: usize = 4;
-}
-
-/// The Otter's kinetic twin with `N = 6` (no current) or `N = 8` states.
+/// The Otter's kinetic twin.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct OtterTwin<const N: usize> {
+pub struct OtterTwin {
     /// The vessel's parameters.
     pub params: OtterParams,
     /// Effects on the measurement (none by default).
@@ -244,7 +299,7 @@ pub struct OtterTwin<const N: usize> {
     mass_inverse: Matrix3<f64>,
 }
 
-impl<const N: usize> OtterTwin<N> {
+impl OtterTwin {
     /// The twin of a vessel with `params`.
     pub fn new(params: OtterParams) -> Self {
         let mass_inverse = params
@@ -265,7 +320,7 @@ impl<const N: usize> OtterTwin<N> {
     }
 }
 
-impl<const N: usize> Default for OtterTwin<N> {
+impl Default for OtterTwin {
     fn default() -> Self {
         Self::new(OtterParams::default())
     }
@@ -353,58 +408,57 @@ pub mod crossflow {
 }
 
 /// The continuous-time dynamics at one point: the state derivative, its
-/// Jacobian `A` and the fault sensitivity `B = d xdot / d theta`, on the
-/// 8-state vector.
+/// Jacobian `A` and the fault sensitivity `B = d xdot / d theta`.
 ///
 /// `A` is kept as its blocks that can be non-zero (see
 /// [`block_structure_holds`]): rows eta (north, east, psi) against eta, nu
-/// and the current, and rows nu against nu; `B` as its nu rows.
+/// and the constants (current and heading bias), and rows nu against nu;
+/// `B` as its nu rows.
 struct Derivatives {
-    xdot: SVector<f64, 8>,
+    xdot: State,
     /// `A` rows eta, columns eta (`E`).
     a_eta_eta: Matrix3<f64>,
     /// `A` rows eta, columns nu (`N`).
     a_eta_nu: Matrix3<f64>,
-    /// `A` rows eta, columns current.
-    a_eta_current: Matrix3x2<f64>,
+    /// `A` rows eta, columns of the constants (`C`).
+    a_eta_const: Matrix3<f64>,
     /// `A` rows nu, columns nu (`D`).
     a_nu_nu: Matrix3<f64>,
     /// `B` rows nu.
-    b_nu: Matrix3x2<f64>,
+    b_nu: SMatrix<f64, 3, FAULTS>,
 }
 
 impl Derivatives {
-    /// `A` as an 8 x 8 matrix.
+    /// `A` as a full matrix.
     #[cfg(test)]
-    fn a(&self) -> SMatrix<f64, 8, 8> {
-        let mut a = SMatrix::<f64, 8, 8>::zeros();
+    fn a(&self) -> SMatrix<f64, STATES, STATES> {
+        let mut a = SMatrix::<f64, STATES, STATES>::zeros();
         a.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.a_eta_eta);
         a.fixed_view_mut::<3, 3>(0, 3).copy_from(&self.a_eta_nu);
-        a.fixed_view_mut::<3, 2>(0, 6)
-            .copy_from(&self.a_eta_current);
+        a.fixed_view_mut::<3, 3>(0, 6).copy_from(&self.a_eta_const);
         a.fixed_view_mut::<3, 3>(3, 3).copy_from(&self.a_nu_nu);
         a
     }
 
-    /// `B` as an 8 x 2 matrix.
+    /// `B` as a full matrix.
     #[cfg(test)]
-    fn b(&self) -> SMatrix<f64, 8, 2> {
-        let mut b = SMatrix::<f64, 8, 2>::zeros();
-        b.fixed_view_mut::<3, 2>(3, 0).copy_from(&self.b_nu);
+    fn b(&self) -> SMatrix<f64, STATES, FAULTS> {
+        let mut b = SMatrix::<f64, STATES, FAULTS>::zeros();
+        b.fixed_view_mut::<3, FAULTS>(3, 0).copy_from(&self.b_nu);
         b
     }
 }
 
 /// Whether `A_PATTERN` has the block structure [`SubstepJacobians`] relies
-/// on. With `eta = (north, east, psi)`, `nu = (u, v, r)` and `c` the current:
-/// `A = [[E, N, C], [0, D, 0], [0, 0, 0]]`, where `E` is non-zero only in the
-/// psi column of the north and east rows (so `E^2 = 0`) and `C` is zero in
-/// the psi row (so `E C = 0`).
-const fn block_structure_holds(a: &Pattern<8, 8>) -> bool {
+/// on. With `eta = (north, east, psi)`, `nu = (u, v, r)` and `c` the
+/// constants (current, heading bias): `A = [[E, N, C], [0, D, 0], [0, 0,
+/// 0]]`, where `E` is non-zero only in the psi column of the north and east
+/// rows (so `E^2 = 0`) and `C` is zero in the psi row (so `E C = 0`).
+const fn block_structure_holds(a: &Pattern<STATES, STATES>) -> bool {
     let mut i = 0;
-    while i < 8 {
+    while i < STATES {
         let mut j = 0;
-        while j < 8 {
+        while j < STATES {
             let eta_row = i < 3;
             let nu_row = i >= 3 && i < 6;
             let allowed = if eta_row && j < 3 {
@@ -432,41 +486,28 @@ const _: () = assert!(block_structure_holds(&A_PATTERN));
 
 /// A step's transition Jacobian `F` and fault sensitivity `Psi`, kept as the
 /// blocks that can be non-zero (the rest of `F` is the identity on the
-/// current and zero). With `A = [[E, N, C], [0, D, 0], [0, 0, 0]]` (see
+/// constants and zero). With `A = [[E, N, C], [0, D, 0], [0, 0, 0]]` (see
 /// [`block_structure_holds`]) every power of `A`, and so `exp(h A)` and every
 /// product of such matrices, is `[[I + *, *, *], [0, *, 0], [0, 0, I]]`, and
-/// the fault sensitivity is zero in the current rows. Working on these 3 x 3
-/// blocks instead of 8 x 8 matrices skips the structural zeros without
-/// testing for them.
+/// the fault sensitivity is zero in the constants' rows. Working on these
+/// 3 x 3 blocks skips the structural zeros without testing for them.
 #[derive(Debug, Clone, Copy)]
 struct SubstepJacobians {
     /// `F` rows eta, columns eta.
     eta_eta: Matrix3<f64>,
     /// `F` rows eta, columns nu.
     eta_nu: Matrix3<f64>,
-    /// `F` rows eta, columns current.
-    eta_current: Matrix3x2<f64>,
+    /// `F` rows eta, columns of the constants.
+    eta_const: Matrix3<f64>,
     /// `F` rows nu, columns nu.
     nu_nu: Matrix3<f64>,
     /// `Psi` rows eta.
-    fault_eta: Matrix3x2<f64>,
+    fault_eta: SMatrix<f64, 3, FAULTS>,
     /// `Psi` rows nu.
-    fault_nu: Matrix3x2<f64>,
+    fault_nu: SMatrix<f64, 3, FAULTS>,
 }
 
 impl SubstepJacobians {
-    /// No step: `F = I`, `Psi = 0`.
-    fn identity() -> Self {
-        Self {
-            eta_eta: Matrix3::identity(),
-            eta_nu: Matrix3::zeros(),
-            eta_current: Matrix3x2::zeros(),
-            nu_nu: Matrix3::identity(),
-            fault_eta: Matrix3x2::zeros(),
-            fault_nu: Matrix3x2::zeros(),
-        }
-    }
-
     /// `exp(h A)` and `int_0^h exp(A s) ds B` to third order in `h A`, from
     /// the derivatives `d` at one point:
     /// `F = I + hA + (hA)^2 / 2 + (hA)^3 / 6` and
@@ -482,7 +523,7 @@ impl SubstepJacobians {
     fn exp_third_order(d: &Derivatives, h: f64) -> Self {
         let e = d.a_eta_eta * h;
         let n = d.a_eta_nu * h;
-        let c = d.a_eta_current * h;
+        let c = d.a_eta_const * h;
         let dd = d.a_nu_nu * h;
         let b = d.b_nu;
         // Products by E and N skip their structural zeros.
@@ -495,7 +536,7 @@ impl SubstepJacobians {
         Self {
             eta_eta: Matrix3::identity() + e,
             eta_nu: n_times(&g) + e_times(&n_t),
-            eta_current: c,
+            eta_const: c,
             nu_nu: Matrix3::identity() + mul(&dd, &g),
             fault_eta: mul(&fault_eta_gain, &b) * h,
             fault_nu: mul(&g, &b) * h,
@@ -511,7 +552,7 @@ impl SubstepJacobians {
             eta_eta: mul_sparse_left(eta_eta, &F_ETA_ETA, &self.eta_eta),
             eta_nu: mul_sparse_left(eta_eta, &F_ETA_ETA, &self.eta_nu)
                 + mul(&next.eta_nu, &self.nu_nu),
-            eta_current: mul_sparse_left(eta_eta, &F_ETA_ETA, &self.eta_current) + next.eta_current,
+            eta_const: mul_sparse_left(eta_eta, &F_ETA_ETA, &self.eta_const) + next.eta_const,
             nu_nu: mul(&next.nu_nu, &self.nu_nu),
             fault_eta: mul_sparse_left(eta_eta, &F_ETA_ETA, &self.fault_eta)
                 + mul(&next.eta_nu, &self.fault_nu)
@@ -520,22 +561,24 @@ impl SubstepJacobians {
         }
     }
 
-    /// `F` and `Psi` as 8 x 8 and 8 x 2 matrices.
+    /// `F` and `Psi` as full matrices.
     #[inline(always)]
-    fn to_matrices(self) -> (SMatrix<f64, 8, 8>, SMatrix<f64, 8, 2>) {
-        let mut f = SMatrix::<f64, 8, 8>::identity();
+    fn to_matrices(self) -> (SMatrix<f64, STATES, STATES>, SMatrix<f64, STATES, FAULTS>) {
+        let mut f = SMatrix::<f64, STATES, STATES>::identity();
         f.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.eta_eta);
         f.fixed_view_mut::<3, 3>(0, 3).copy_from(&self.eta_nu);
-        f.fixed_view_mut::<3, 2>(0, 6).copy_from(&self.eta_current);
+        f.fixed_view_mut::<3, 3>(0, 6).copy_from(&self.eta_const);
         f.fixed_view_mut::<3, 3>(3, 3).copy_from(&self.nu_nu);
-        let mut psi = SMatrix::<f64, 8, 2>::zeros();
-        psi.fixed_view_mut::<3, 2>(0, 0).copy_from(&self.fault_eta);
-        psi.fixed_view_mut::<3, 2>(3, 0).copy_from(&self.fault_nu);
+        let mut psi = SMatrix::<f64, STATES, FAULTS>::zeros();
+        psi.fixed_view_mut::<3, FAULTS>(0, 0)
+            .copy_from(&self.fault_eta);
+        psi.fixed_view_mut::<3, FAULTS>(3, 0)
+            .copy_from(&self.fault_nu);
         (f, psi)
     }
 }
 
-impl<const N: usize> OtterTwin<N> {
+impl OtterTwin {
     /// Propeller thrusts `[port, starboard]`, N.
     pub fn thrusts(&self, input: &ShaftSpeeds) -> Vector2<f64> {
         Vector2::new(
@@ -546,22 +589,12 @@ impl<const N: usize> OtterTwin<N> {
 
     /// The state derivative alone (three of every four evaluations in a
     /// sub-step): no Jacobians built, no cross-flow derivatives.
-    fn xdot(
-        &self,
-        x: &SVector<f64, 8>,
-        thrust: &Vector2<f64>,
-        theta: &SVector<f64, 2>,
-    ) -> SVector<f64, 8> {
+    fn xdot(&self, x: &State, thrust: &Vector2<f64>, theta: &Faults) -> State {
         self.derivatives::<false>(x, thrust, theta).xdot
     }
 
     /// The state derivative with its Jacobians.
-    fn dynamics(
-        &self,
-        x: &SVector<f64, 8>,
-        thrust: &Vector2<f64>,
-        theta: &SVector<f64, 2>,
-    ) -> Derivatives {
+    fn dynamics(&self, x: &State, thrust: &Vector2<f64>, theta: &Faults) -> Derivatives {
         self.derivatives::<true>(x, thrust, theta)
     }
 
@@ -571,9 +604,9 @@ impl<const N: usize> OtterTwin<N> {
     #[inline(always)]
     fn derivatives<const JACOBIANS: bool>(
         &self,
-        x: &SVector<f64, 8>,
+        x: &State,
         thrust: &Vector2<f64>,
-        theta: &SVector<f64, 2>,
+        theta: &Faults,
     ) -> Derivatives {
         let p = &self.params;
         let (psi, u, v, r) = (x[idx::PSI], x[idx::U], x[idx::V], x[idx::R]);
@@ -582,7 +615,9 @@ impl<const N: usize> OtterTwin<N> {
         let mxg = m * p.cg_x_m;
         let a11 = -p.added_mass[0];
         let a22 = -p.added_mass[1];
-        let [xu, yv, nr] = p.linear_damping;
+        let [xu0, yv, nr0] = p.linear_damping;
+        let xu = xu0 * (1.0 + theta[fault::SURGE_DAMPING]);
+        let nr = nr0 * (1.0 + theta[fault::YAW_DAMPING]);
         let k_nl = p.yaw_damping_nonlinear_s;
         let b = p.propeller_offset_m;
         let cf = 0.5 * p.water_density_kgpm3 * p.draft_m * p.crossflow_drag_coeff;
@@ -592,21 +627,29 @@ impl<const N: usize> OtterTwin<N> {
             crossflow::forces(v, r, p.length_m)
         };
 
-        let eff = [(1.0 - theta[0]) * thrust[0], (1.0 - theta[1]) * thrust[1]];
+        let scale = 1.0 + theta[fault::THRUST];
+        let healthy = [
+            (1.0 - theta[fault::PORT]) * thrust[0],
+            (1.0 - theta[fault::STARBOARD]) * thrust[1],
+        ];
+        let eff = [scale * healthy[0], scale * healthy[1]];
         let tau = Vector3::new(eff[0] + eff[1], 0.0, b * (eff[0] - eff[1]));
         let coriolis = Vector3::new(
             -mxg * r * r - (m + a22) * v * r,
             (m + a11) * u * r,
             mxg * u * r + (a22 - a11) * u * v,
         );
+        let yaw_damping = (1.0 + k_nl * r.abs()) * r;
         let damping = Vector3::new(
             xu * u,
             yv * v - cf * ints.w_abs_w,
-            nr * (1.0 + k_nl * r.abs()) * r - cf * ints.x_w_abs_w,
+            nr * yaw_damping - cf * ints.x_w_abs_w,
         );
-        let nu_dot = mul(&self.mass_inverse, &(tau - coriolis + damping));
+        // (1 + th_m) M nu' = g: the mass error divides the acceleration.
+        let inertia = 1.0 / (1.0 + theta[fault::MASS]);
+        let nu_dot = mul(&self.mass_inverse, &(tau - coriolis + damping)) * inertia;
 
-        let mut xdot = SVector::<f64, 8>::zeros();
+        let mut xdot = State::zeros();
         xdot[idx::NORTH] = c * u - s * v + x[idx::CURRENT_NORTH];
         xdot[idx::EAST] = s * u + c * v + x[idx::CURRENT_EAST];
         xdot[idx::PSI] = r;
@@ -618,9 +661,9 @@ impl<const N: usize> OtterTwin<N> {
             xdot,
             a_eta_eta: Matrix3::zeros(),
             a_eta_nu: Matrix3::zeros(),
-            a_eta_current: Matrix3x2::zeros(),
+            a_eta_const: Matrix3::zeros(),
             a_nu_nu: Matrix3::zeros(),
-            b_nu: Matrix3x2::zeros(),
+            b_nu: SMatrix::zeros(),
         };
         if JACOBIANS {
             // Rows north, east, psi of A; the columns of each block in
@@ -632,8 +675,8 @@ impl<const N: usize> OtterTwin<N> {
             d.a_eta_nu[(idx::EAST, idx::U - 3)] = s;
             d.a_eta_nu[(idx::EAST, idx::V - 3)] = c;
             d.a_eta_nu[(idx::PSI, idx::R - 3)] = 1.0;
-            d.a_eta_current[(idx::NORTH, idx::CURRENT_NORTH - 6)] = 1.0;
-            d.a_eta_current[(idx::EAST, idx::CURRENT_EAST - 6)] = 1.0;
+            d.a_eta_const[(idx::NORTH, idx::CURRENT_NORTH - 6)] = 1.0;
+            d.a_eta_const[(idx::EAST, idx::CURRENT_EAST - 6)] = 1.0;
             // d g / d nu with g = tau - C nu + damping.
             let dg = Matrix3::new(
                 xu,
@@ -646,16 +689,31 @@ impl<const N: usize> OtterTwin<N> {
                 -(a22 - a11) * u - cf * ints.d1,
                 nr * (1.0 + 2.0 * k_nl * r.abs()) - mxg * u - cf * ints.d2,
             );
-            d.a_nu_nu = mul(&self.mass_inverse, &dg);
-            let dtau = nalgebra::Matrix3x2::new(
-                -thrust[0],
-                -thrust[1],
+            d.a_nu_nu = mul(&self.mass_inverse, &dg) * inertia;
+            // d g / d theta.
+            let dtau = SMatrix::<f64, 3, FAULTS>::new(
+                -scale * thrust[0],
+                -scale * thrust[1],
+                xu0 * u,
+                0.0,
+                healthy[0] + healthy[1],
                 0.0,
                 0.0,
-                -b * thrust[0],
-                b * thrust[1],
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                -b * scale * thrust[0],
+                b * scale * thrust[1],
+                0.0,
+                nr0 * yaw_damping,
+                b * (healthy[0] - healthy[1]),
+                0.0,
             );
-            d.b_nu = mul(&self.mass_inverse, &dtau);
+            d.b_nu = mul(&self.mass_inverse, &dtau) * inertia;
+            // d nu' / d th_m = -nu' / (1 + th_m).
+            d.b_nu.set_column(fault::MASS, &(nu_dot * -inertia));
         }
         d
     }
@@ -665,39 +723,35 @@ impl<const N: usize> OtterTwin<N> {
     /// The nonlinear yaw damping shortens the yaw time constant to
     /// M33 / (|N_r| (1 + 2c|r|)) in a hard turn (0.14 s at 17 deg/s): keep
     /// sub-steps at half of it, and at most [`MAX_SUBSTEP_S`].
-    fn substeps(
-        &self,
-        x0: &SVector<f64, 8>,
-        xdot_start: &SVector<f64, 8>,
-        dt_s: f64,
-    ) -> (usize, f64) {
+    fn substeps(&self, x0: &State, xdot_start: &State, theta: &Faults, dt_s: f64) -> (usize, f64) {
         let p = &self.params;
         let r_start = x0[idx::R];
         let r_end_euler = r_start + dt_s.min(MAX_SUBSTEP_S) * xdot_start[idx::R];
         let r_max = r_start.abs().max(r_end_euler.abs());
-        let yaw_tau_s = p.mass_matrix[(2, 2)]
-            / (-p.linear_damping[2] * (1.0 + 2.0 * p.yaw_damping_nonlinear_s * r_max));
+        let damping = -p.linear_damping[2] * (1.0 + theta[fault::YAW_DAMPING]).max(0.1);
+        let inertia = p.mass_matrix[(2, 2)] * (1.0 + theta[fault::MASS]).max(0.1);
+        let yaw_tau_s = inertia / (damping * (1.0 + 2.0 * p.yaw_damping_nonlinear_s * r_max));
         let max_h = MAX_SUBSTEP_S.min(0.5 * yaw_tau_s);
         let substeps = (dt_s / max_h).ceil().clamp(1.0, 1000.0) as usize;
         (substeps, max_h)
     }
 
-    /// One filter step on the 8-state vector.
+    /// One filter step.
     #[inline(always)]
-    fn step8(
+    fn step(
         &self,
-        x0: &SVector<f64, 8>,
+        x0: &State,
         input: &ShaftSpeeds,
-        theta: &SVector<f64, 2>,
+        theta: &Faults,
         dt_s: f64,
-    ) -> Transition<8, 2> {
+    ) -> Transition<STATES, FAULTS> {
         let thrust = self.thrusts(input);
         // The derivative at the start, also the first sub-step's k1.
         let xdot_start = self.xdot(x0, &thrust, theta);
-        let (substeps, _) = self.substeps(x0, &xdot_start, dt_s);
+        let (substeps, _) = self.substeps(x0, &xdot_start, theta, dt_s);
         let h = dt_s / substeps as f64;
         let mut x = *x0;
-        let mut jacobians = SubstepJacobians::identity();
+        let mut jacobians: Option<SubstepJacobians> = None;
         for substep in 0..substeps {
             // The state by classical RK4; the Jacobians of the sub-step from
             // the derivatives at its midpoint (the second RK stage), as
@@ -709,19 +763,18 @@ impl<const N: usize> OtterTwin<N> {
             };
             let mid = self.dynamics(&(x + k1 * (0.5 * h)), &thrust, theta);
             let sub = SubstepJacobians::exp_third_order(&mid, h);
-            jacobians = if substep == 0 {
+            jacobians = Some(match jacobians {
                 // F and Psi start as I and 0: the products would copy.
-                sub
-            } else {
-                jacobians.then(&sub)
-            };
+                None => sub,
+                Some(j) => j.then(&sub),
+            });
             let k2 = mid.xdot;
             let k3 = self.xdot(&(x + k2 * (0.5 * h)), &thrust, theta);
             let k4 = self.xdot(&(x + k3 * h), &thrust, theta);
             x += (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (h / 6.0);
         }
         x[idx::PSI] = wrap_pi(x[idx::PSI]);
-        let (f, psi) = jacobians.to_matrices();
+        let (f, psi) = jacobians.expect("at least one sub-step").to_matrices();
         Transition {
             next: x,
             jacobian: f,
@@ -729,22 +782,22 @@ impl<const N: usize> OtterTwin<N> {
         }
     }
 
-    /// The state after a step, exactly as [`Self::step8`] computes it, without
+    /// The state after a step, exactly as [`Self::step`] computes it, without
     /// the Jacobians (RK4 on the state derivative alone). When `midpoint`,
     /// also the derivatives at the step's midpoint: the state after half the
     /// sub-steps when their number is even, else the middle sub-step's
     /// second RK stage (its own midpoint, which is the step's).
     #[inline(always)]
-    fn propagate8(
+    fn propagate_state(
         &self,
-        x0: &SVector<f64, 8>,
+        x0: &State,
         thrust: &Vector2<f64>,
-        theta: &SVector<f64, 2>,
+        theta: &Faults,
         dt_s: f64,
         midpoint: bool,
-    ) -> (SVector<f64, 8>, Option<Derivatives>, f64) {
+    ) -> (State, Option<Derivatives>, f64) {
         let xdot_start = self.xdot(x0, thrust, theta);
-        let (substeps, max_h) = self.substeps(x0, &xdot_start, dt_s);
+        let (substeps, max_h) = self.substeps(x0, &xdot_start, theta, dt_s);
         let h = dt_s / substeps as f64;
         let middle = substeps / 2;
         let mut at_midpoint = None;
@@ -777,26 +830,26 @@ impl<const N: usize> OtterTwin<N> {
         (x, at_midpoint, max_h)
     }
 
-    /// A forecast's step: the state as [`Self::step8`] (the same numbers),
+    /// A forecast's step: the state as [`Self::step`] (the same numbers),
     /// and the Jacobians over the whole step from `A` and `B` frozen at the
     /// step's midpoint: `F = exp(A dt)` and `Psi = int_0^dt exp(A s) ds B`,
     /// by the third-order expansion over `dt / 2^j` (no longer than a
-    /// sub-step) and `j` doublings. Against the sub-step chain of `step8`
+    /// sub-step) and `j` doublings. Against the sub-step chain of `step`
     /// this drops the variation of `A` within the step (second order in
     /// `dt`, the midpoint rule): at the forecast's 1 s steps in a hard turn
     /// the difference is a fraction of a per cent (the test below), for a
     /// fifth of the derivative evaluations and products.
     #[inline(always)]
-    fn forecast_step8(
+    fn forecast_step(
         &self,
-        x0: &SVector<f64, 8>,
+        x0: &State,
         input: &ShaftSpeeds,
-        theta: &SVector<f64, 2>,
+        theta: &Faults,
         dt_s: f64,
-    ) -> Transition<8, 2> {
+    ) -> Transition<STATES, FAULTS> {
         let thrust = self.thrusts(input);
-        let (next, mid, max_h) = self.propagate8(x0, &thrust, theta, dt_s, true);
-        let mid = mid.expect("propagate8 evaluates the midpoint when asked");
+        let (next, mid, max_h) = self.propagate_state(x0, &thrust, theta, dt_s, true);
+        let mid = mid.expect("propagate_state evaluates the midpoint when asked");
         let mut doublings = 0;
         let mut h = dt_s;
         while h > max_h && doublings < 30 {
@@ -816,10 +869,9 @@ impl<const N: usize> OtterTwin<N> {
         }
     }
 
-    /// The measurement model on the 8-state vector.
-    /// The measurement with effects, its Jacobian by central differences.
-    fn observe8_with_effects(&self, x: &SVector<f64, 8>) -> Observation<8, 5> {
-        let h = |x: &SVector<f64, 8>| {
+    /// The measurement with effects, its Jacobian by forward differences.
+    fn observe_with_effects(&self, x: &State) -> Observation<STATES, MEASUREMENTS> {
+        let h = |x: &State| {
             let (s, c) = trig::sin_cos(x[idx::PSI]);
             let k = Kinematics {
                 north_m: x[idx::NORTH],
@@ -829,13 +881,21 @@ impl<const N: usize> OtterTwin<N> {
                 ground_north_mps: c * x[idx::U] - s * x[idx::V] + x[idx::CURRENT_NORTH],
                 ground_east_mps: s * x[idx::U] + c * x[idx::V] + x[idx::CURRENT_EAST],
             };
-            SVector::<f64, 5>::from(gnss_measurement(&k, &self.effects))
+            let m = gnss_measurement(&k, &self.effects);
+            SVector::<f64, MEASUREMENTS>::from([
+                m[0],
+                m[1],
+                m[2],
+                m[3],
+                m[4] + x[idx::HEADING_BIAS],
+                x[idx::R],
+            ])
         };
         let predicted = h(x);
-        let mut jacobian = SMatrix::<f64, 5, 8>::zeros();
+        let mut jacobian = SMatrix::<f64, MEASUREMENTS, STATES>::zeros();
         // Forward differences: the Jacobian only steers the gains, and the
         // measurement is smooth; one evaluation per column.
-        for j in 0..8 {
+        for j in 0..STATES {
             let step = 1e-7 * (1.0 + x[j].abs());
             let mut xp = *x;
             xp[j] += step;
@@ -851,9 +911,10 @@ impl<const N: usize> OtterTwin<N> {
         }
     }
 
-    fn observe8(&self, x: &SVector<f64, 8>) -> Observation<8, 5> {
+    /// The measurement model.
+    fn observe_state(&self, x: &State) -> Observation<STATES, MEASUREMENTS> {
         if !self.effects.is_neutral() {
-            return self.observe8_with_effects(x);
+            return self.observe_with_effects(x);
         }
         let (psi, u, v) = (x[idx::PSI], x[idx::U], x[idx::V]);
         let (s, c) = trig::sin_cos(psi);
@@ -863,10 +924,12 @@ impl<const N: usize> OtterTwin<N> {
         // scaling (a C library call).
         let sog = (vn * vn + ve * ve).sqrt();
         let sog_safe = sog.max(1e-3);
-        let mut h = SMatrix::<f64, 5, 8>::zeros();
+        let mut h = SMatrix::<f64, MEASUREMENTS, STATES>::zeros();
         h[(meas::NORTH, idx::NORTH)] = 1.0;
         h[(meas::EAST, idx::EAST)] = 1.0;
         h[(meas::HEADING, idx::PSI)] = 1.0;
+        h[(meas::HEADING, idx::HEADING_BIAS)] = 1.0;
+        h[(meas::YAW_RATE, idx::R)] = 1.0;
         // d vn / d x and d ve / d x over (psi, u, v, cn, ce).
         let dvn = [
             (idx::PSI, -s * u - c * v),
@@ -888,7 +951,14 @@ impl<const N: usize> OtterTwin<N> {
             h[(meas::SOG, j)] += ve / sog_safe * d;
             h[(meas::COG, j)] += vn / (sog_safe * sog_safe) * d;
         }
-        let predicted = SVector::<f64, 5>::new(x[idx::NORTH], x[idx::EAST], sog, ve.atan2(vn), psi);
+        let predicted = SVector::<f64, MEASUREMENTS>::from([
+            x[idx::NORTH],
+            x[idx::EAST],
+            sog,
+            ve.atan2(vn),
+            psi + x[idx::HEADING_BIAS],
+            x[idx::R],
+        ]);
         Observation {
             predicted,
             jacobian: h,
@@ -896,8 +966,8 @@ impl<const N: usize> OtterTwin<N> {
     }
 }
 
-const MEASUREMENT_ANGLES: [bool; 5] = [false, false, false, true, true];
-const STATE_NAMES: [&str; 8] = [
+const MEASUREMENT_ANGLES: [bool; MEASUREMENTS] = [false, false, false, true, true, false];
+const STATE_NAMES: [&str; STATES] = [
     "north_m",
     "east_m",
     "heading_rad",
@@ -906,9 +976,10 @@ const STATE_NAMES: [&str; 8] = [
     "yaw_rate_radps",
     "current_north_mps",
     "current_east_mps",
+    "heading_bias_rad",
 ];
 
-impl Model<8, 5, 2> for OtterTwin<8> {
+impl Model<STATES, MEASUREMENTS, FAULTS> for OtterTwin {
     type Input = ShaftSpeeds;
 
     // Inlined into the filter's step, so that it runs in the step's AVX2
@@ -916,22 +987,16 @@ impl Model<8, 5, 2> for OtterTwin<8> {
     #[inline(always)]
     fn transition(
         &self,
-        x: &SVector<f64, 8>,
+        x: &State,
         input: &ShaftSpeeds,
-        theta: &SVector<f64, 2>,
+        theta: &Faults,
         dt_s: f64,
-    ) -> Transition<8, 2> {
-        self.step8(x, input, theta, dt_s)
+    ) -> Transition<STATES, FAULTS> {
+        self.step(x, input, theta, dt_s)
     }
 
-    fn propagate(
-        &self,
-        x: &SVector<f64, 8>,
-        input: &ShaftSpeeds,
-        theta: &SVector<f64, 2>,
-        dt_s: f64,
-    ) -> SVector<f64, 8> {
-        self.propagate8(x, &self.thrusts(input), theta, dt_s, false)
+    fn propagate(&self, x: &State, input: &ShaftSpeeds, theta: &Faults, dt_s: f64) -> State {
+        self.propagate_state(x, &self.thrusts(input), theta, dt_s, false)
             .0
     }
 
@@ -940,130 +1005,35 @@ impl Model<8, 5, 2> for OtterTwin<8> {
     #[inline(always)]
     fn forecast_transition(
         &self,
-        x: &SVector<f64, 8>,
+        x: &State,
         input: &ShaftSpeeds,
-        theta: &SVector<f64, 2>,
+        theta: &Faults,
         dt_s: f64,
-    ) -> Transition<8, 2> {
-        self.forecast_step8(x, input, theta, dt_s)
+    ) -> Transition<STATES, FAULTS> {
+        self.forecast_step(x, input, theta, dt_s)
     }
 
-    fn observe(&self, x: &SVector<f64, 8>) -> Observation<8, 5> {
-        self.observe8(x)
+    fn observe(&self, x: &State) -> Observation<STATES, MEASUREMENTS> {
+        self.observe_state(x)
     }
 
-    fn measurement_angles(&self) -> [bool; 5] {
+    fn measurement_angles(&self) -> [bool; MEASUREMENTS] {
         MEASUREMENT_ANGLES
     }
 
-    fn state_angles(&self) -> [bool; 8] {
-        [false, false, true, false, false, false, false, false]
+    fn state_angles(&self) -> [bool; STATES] {
+        [false, false, true, false, false, false, false, false, true]
     }
 
-    fn state_names(&self) -> [&'static str; 8] {
+    fn state_names(&self) -> [&'static str; STATES] {
         STATE_NAMES
     }
 
-    const TRANSITION_PATTERN: Pattern<8, 8> = F_PATTERN;
+    const TRANSITION_PATTERN: Pattern<STATES, STATES> = F_PATTERN;
 
-    const OBSERVATION_PATTERN: Pattern<5, 8> = H_PATTERN;
+    const OBSERVATION_PATTERN: Pattern<MEASUREMENTS, STATES> = H_PATTERN;
 
-    const SPARSER_OBSERVATION_PATTERN: Pattern<5, 8> = H_PATTERN_WITHOUT_EFFECTS;
-
-    fn observation_in_sparser_pattern(&self) -> bool {
-        self.effects.is_neutral()
-    }
-}
-
-/// The 6-state vector as an 8-state one in still water.
-fn with_zero_current(x: &SVector<f64, 6>) -> SVector<f64, 8> {
-    let mut x8 = SVector::<f64, 8>::zeros();
-    x8.fixed_rows_mut::<6>(0).copy_from(x);
-    x8
-}
-
-/// The 6-state part of an 8-state transition.
-fn leading_transition(t: &Transition<8, 2>) -> Transition<6, 2> {
-    Transition {
-        next: t.next.fixed_rows::<6>(0).into_owned(),
-        jacobian: t.jacobian.fixed_view::<6, 6>(0, 0).into_owned(),
-        fault_sensitivity: t.fault_sensitivity.fixed_rows::<6>(0).into_owned(),
-    }
-}
-
-impl Model<6, 5, 2> for OtterTwin<6> {
-    type Input = ShaftSpeeds;
-
-    fn transition(
-        &self,
-        x: &SVector<f64, 6>,
-        input: &ShaftSpeeds,
-        theta: &SVector<f64, 2>,
-        dt_s: f64,
-    ) -> Transition<6, 2> {
-        leading_transition(&self.step8(&with_zero_current(x), input, theta, dt_s))
-    }
-
-    fn propagate(
-        &self,
-        x: &SVector<f64, 6>,
-        input: &ShaftSpeeds,
-        theta: &SVector<f64, 2>,
-        dt_s: f64,
-    ) -> SVector<f64, 6> {
-        let (next, _, _) = self.propagate8(
-            &with_zero_current(x),
-            &self.thrusts(input),
-            theta,
-            dt_s,
-            false,
-        );
-        next.fixed_rows::<6>(0).into_owned()
-    }
-
-    fn forecast_transition(
-        &self,
-        x: &SVector<f64, 6>,
-        input: &ShaftSpeeds,
-        theta: &SVector<f64, 2>,
-        dt_s: f64,
-    ) -> Transition<6, 2> {
-        leading_transition(&self.forecast_step8(&with_zero_current(x), input, theta, dt_s))
-    }
-
-    fn observe(&self, x: &SVector<f64, 6>) -> Observation<6, 5> {
-        let o = self.observe8(&with_zero_current(x));
-        Observation {
-            predicted: o.predicted,
-            jacobian: o.jacobian.fixed_columns::<6>(0).into_owned(),
-        }
-    }
-
-    fn measurement_angles(&self) -> [bool; 5] {
-        MEASUREMENT_ANGLES
-    }
-
-    fn state_angles(&self) -> [bool; 6] {
-        [false, false, true, false, false, false]
-    }
-
-    fn state_names(&self) -> [&'static str; 6] {
-        [
-            STATE_NAMES[0],
-            STATE_NAMES[1],
-            STATE_NAMES[2],
-            STATE_NAMES[3],
-            STATE_NAMES[4],
-            STATE_NAMES[5],
-        ]
-    }
-
-    const TRANSITION_PATTERN: Pattern<6, 6> = block::<6, 6, 8>(&F_PATTERN, 0, 0);
-
-    const OBSERVATION_PATTERN: Pattern<5, 6> = block::<5, 6, 5>(&H_PATTERN, 0, 0);
-
-    const SPARSER_OBSERVATION_PATTERN: Pattern<5, 6> =
-        block::<5, 6, 5>(&H_PATTERN_WITHOUT_EFFECTS, 0, 0);
+    const SPARSER_OBSERVATION_PATTERN: Pattern<MEASUREMENTS, STATES> = H_PATTERN_WITHOUT_EFFECTS;
 
     fn observation_in_sparser_pattern(&self) -> bool {
         self.effects.is_neutral()
@@ -1074,8 +1044,12 @@ impl Model<6, 5, 2> for OtterTwin<6> {
 mod tests {
     use super::*;
 
-    fn state() -> SVector<f64, 8> {
-        SVector::<f64, 8>::from_column_slice(&[3.0, -4.0, 0.7, 1.6, 0.12, 0.08, 0.2, -0.1])
+    fn state() -> State {
+        State::from_column_slice(&[3.0, -4.0, 0.7, 1.6, 0.12, 0.08, 0.2, -0.1, 0.05])
+    }
+
+    fn faults() -> Faults {
+        Faults::from([0.2, 0.05, 0.15, -0.1, 0.12, -0.08])
     }
 
     #[test]
@@ -1126,20 +1100,20 @@ mod tests {
 
     #[test]
     fn continuous_jacobians_match_finite_differences() {
-        let twin = OtterTwin::<8>::default();
+        let twin = OtterTwin::default();
         let thrust = Vector2::new(60.0, 45.0);
-        let theta = SVector::<f64, 2>::new(0.2, 0.05);
+        let theta = faults();
         let x = state();
         let d = twin.dynamics(&x, &thrust, &theta);
         let eps = 1e-6;
-        for j in 0..8 {
+        for j in 0..STATES {
             let mut xp = x;
             let mut xm = x;
             xp[j] += eps;
             xm[j] -= eps;
             let num =
                 (twin.xdot(&xp, &thrust, &theta) - twin.xdot(&xm, &thrust, &theta)) / (2.0 * eps);
-            for i in 0..8 {
+            for i in 0..STATES {
                 assert!(
                     (num[i] - d.a()[(i, j)]).abs() < 1e-5,
                     "A[{i},{j}]: {} vs {}",
@@ -1148,24 +1122,24 @@ mod tests {
                 );
             }
         }
-        for j in 0..2 {
+        for j in 0..FAULTS {
             let mut tp = theta;
             tp[j] += eps;
             let num = (twin.xdot(&x, &thrust, &tp) - d.xdot) / eps;
-            for i in 0..8 {
+            for i in 0..STATES {
                 assert!((num[i] - d.b()[(i, j)]).abs() < 1e-5, "B[{i},{j}]");
             }
         }
     }
 
     /// The 3 x 3 block arithmetic of [`SubstepJacobians`] gives the dense
-    /// 8 x 8 third-order series and the dense chain rule, at a straight
-    /// run, in a hard turn and reversing.
+    /// third-order series and the dense chain rule, at a straight run, in a
+    /// hard turn and reversing.
     #[test]
     fn jacobian_blocks_match_the_dense_series_and_chain() {
-        let twin = OtterTwin::<8>::default();
+        let twin = OtterTwin::default();
         let thrust = Vector2::new(60.0, 45.0);
-        let theta = SVector::<f64, 2>::new(0.2, 0.05);
+        let theta = faults();
         let mut hard_turn = state();
         hard_turn[idx::R] = 0.3;
         hard_turn[idx::V] = -0.2;
@@ -1192,7 +1166,7 @@ mod tests {
             for h in [0.05, 0.2] {
                 let dense = |d: &Derivatives| {
                     let ha = d.a() * h;
-                    let f = SMatrix::<f64, 8, 8>::identity()
+                    let f = SMatrix::<f64, STATES, STATES>::identity()
                         + ha
                         + ha * ha * 0.5
                         + ha * ha * ha * (1.0 / 6.0);
@@ -1217,33 +1191,31 @@ mod tests {
     /// finite differences of the step itself.
     fn step_jacobian_errors(dt: f64) -> (f64, f64) {
         let x = &state();
-        let twin = OtterTwin::<8>::default();
+        let twin = OtterTwin::default();
         let u = ShaftSpeeds {
             port_radps: 80.0,
             starboard_radps: 70.0,
         };
-        let theta = SVector::<f64, 2>::new(0.2, 0.0);
-        let step = |x: &SVector<f64, 8>, th: &SVector<f64, 2>| {
-            Model::<8, 5, 2>::transition(&twin, x, &u, th, dt)
-        };
+        let theta = Faults::from([0.2, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        let step = |x: &State, th: &Faults| Model::transition(&twin, x, &u, th, dt);
         let t = step(x, &theta);
         let eps = 1e-6;
         let (mut worst_f, mut worst_psi) = (0.0f64, 0.0f64);
-        for j in 0..8 {
+        for j in 0..STATES {
             let (mut xp, mut xm) = (*x, *x);
             xp[j] += eps;
             xm[j] -= eps;
             let num = (step(&xp, &theta).next - step(&xm, &theta).next) / (2.0 * eps);
-            for i in 0..8 {
+            for i in 0..STATES {
                 worst_f = worst_f.max((num[i] - t.jacobian[(i, j)]).abs());
             }
         }
-        for j in 0..2 {
+        for j in 0..FAULTS {
             let (mut tp, mut tm) = (theta, theta);
             tp[j] += eps;
             tm[j] -= eps;
             let num = (step(x, &tp).next - step(x, &tm).next) / (2.0 * eps);
-            for i in 0..8 {
+            for i in 0..STATES {
                 worst_psi = worst_psi.max((num[i] - t.fault_sensitivity[(i, j)]).abs());
             }
         }
@@ -1251,41 +1223,33 @@ mod tests {
     }
 
     /// The forecast's steps and the state-only steps give exactly the
-    /// filter's next state (the diagnosis and the forecast rely on it),
-    /// for steps of one and of several sub-steps, odd and even, in both
-    /// twins.
+    /// filter's next state (the diagnosis and the forecast rely on it), for
+    /// steps of one and of several sub-steps, odd and even.
     #[test]
     fn forecast_and_state_only_steps_give_the_filters_state() {
-        let twin8 = OtterTwin::<8>::default();
-        let twin6 = OtterTwin::<6>::default();
+        let twin = OtterTwin::default();
         let u = ShaftSpeeds {
             port_radps: 90.0,
             starboard_radps: 40.0,
         };
-        let theta = SVector::<f64, 2>::new(0.1, 0.3);
+        let theta = Faults::from([0.1, 0.3, -0.2, 0.25, 0.2, -0.2]);
         let mut hard_turn = state();
         hard_turn[idx::R] = 0.3;
         for x in [state(), hard_turn] {
             for dt in [0.05, 0.2, 0.37, 0.6, 1.0, 2.5] {
-                let filter = Model::<8, 5, 2>::transition(&twin8, &x, &u, &theta, dt);
-                let forecast = Model::<8, 5, 2>::forecast_transition(&twin8, &x, &u, &theta, dt);
-                let alone = Model::<8, 5, 2>::propagate(&twin8, &x, &u, &theta, dt);
+                let filter = Model::transition(&twin, &x, &u, &theta, dt);
+                let forecast = Model::forecast_transition(&twin, &x, &u, &theta, dt);
+                let alone = Model::propagate(&twin, &x, &u, &theta, dt);
                 assert_eq!(forecast.next, filter.next, "dt {dt}");
                 assert_eq!(alone, filter.next, "dt {dt}");
-                let x6 = x.fixed_rows::<6>(0).into_owned();
-                let filter6 = Model::<6, 5, 2>::transition(&twin6, &x6, &u, &theta, dt);
-                let forecast6 = Model::<6, 5, 2>::forecast_transition(&twin6, &x6, &u, &theta, dt);
-                let alone6 = Model::<6, 5, 2>::propagate(&twin6, &x6, &u, &theta, dt);
-                assert_eq!(forecast6.next, filter6.next, "dt {dt}");
-                assert_eq!(alone6, filter6.next, "dt {dt}");
             }
         }
     }
 
     /// The Jacobians are exp(h A_mid) to third order, with A taken at the
     /// sub-step's midpoint: their error shrinks like h^3 per sub-step (8x
-    /// per halving). At the filter's 0.2 s step in
-    /// a turn they are within about 1 % of the step's own derivatives.
+    /// per halving). At the filter's 0.2 s step in a turn they are within
+    /// about 1 % of the step's own derivatives.
     #[test]
     fn step_jacobians_converge_to_the_derivatives_of_the_step() {
         let (f_small, psi_small) = step_jacobian_errors(0.02);
@@ -1307,34 +1271,46 @@ mod tests {
 
     #[test]
     fn effects_agree_with_the_analytic_path_when_neutral_and_shift_the_fix() {
-        let twin = OtterTwin::<8>::default();
+        let twin = OtterTwin::default();
         let x = state();
-        let plain = twin.observe8(&x);
+        let plain = twin.observe_state(&x);
         // Forcing the numerical path with neutral effects gives the same.
-        let numeric = twin.observe8_with_effects(&x);
+        let numeric = twin.observe_with_effects(&x);
         assert!((plain.predicted - numeric.predicted).amax() < 1e-12);
         assert!((plain.jacobian - numeric.jacobian).amax() < 1e-6);
         let moved = twin.with_effects(SensorEffects {
             antenna_m: [2.0, 0.0],
             ..Default::default()
         });
-        let m = moved.observe8(&x);
+        let m = moved.observe_state(&x);
         let (s, c) = x[idx::PSI].sin_cos();
         assert!((m.predicted[meas::NORTH] - x[idx::NORTH] - 2.0 * c).abs() < 1e-12);
         assert!((m.predicted[meas::EAST] - x[idx::EAST] - 2.0 * s).abs() < 1e-12);
     }
 
     #[test]
-    fn observation_jacobian_matches_finite_differences() {
-        let twin = OtterTwin::<8>::default();
+    fn heading_and_yaw_rate_are_measured_with_the_sensors_bias() {
+        let twin = OtterTwin::default();
         let x = state();
-        let o = twin.observe8(&x);
+        let o = twin.observe_state(&x);
+        assert_eq!(
+            o.predicted[meas::HEADING],
+            x[idx::PSI] + x[idx::HEADING_BIAS]
+        );
+        assert_eq!(o.predicted[meas::YAW_RATE], x[idx::R]);
+    }
+
+    #[test]
+    fn observation_jacobian_matches_finite_differences() {
+        let twin = OtterTwin::default();
+        let x = state();
+        let o = twin.observe_state(&x);
         let eps = 1e-7;
-        for j in 0..8 {
+        for j in 0..STATES {
             let mut xp = x;
             xp[j] += eps;
-            let num = (twin.observe8(&xp).predicted - o.predicted) / eps;
-            for i in 0..5 {
+            let num = (twin.observe_state(&xp).predicted - o.predicted) / eps;
+            for i in 0..MEASUREMENTS {
                 assert!((num[i] - o.jacobian[(i, j)]).abs() < 1e-5, "H[{i},{j}]");
             }
         }
@@ -1342,22 +1318,21 @@ mod tests {
 
     /// Every entry outside the declared patterns is exactly zero: of A, of
     /// the step's F over short and long steps (several sub-steps) in a hard
-    /// turn, and of H with and without sensor effects; for both twins.
+    /// turn, and of H with and without sensor effects.
     #[test]
     fn jacobians_keep_to_their_patterns() {
         let thrust = Vector2::new(60.0, 45.0);
-        let theta = SVector::<f64, 2>::new(0.2, 0.05);
+        let theta = faults();
         let effects = SensorEffects {
             antenna_m: [0.4, -0.2],
             heading_offset_rad: 0.02,
             sog_scale: 1.03,
             gnss_latency_s: 0.15,
         };
-        let twin = OtterTwin::<8>::default();
-        let twin6 = OtterTwin::<6>::default();
+        let twin = OtterTwin::default();
         for (k, x) in [
             state(),
-            SVector::<f64, 8>::from_column_slice(&[0.0, 0.0, -2.9, 2.5, -0.3, -0.4, -0.3, 0.25]),
+            State::from_column_slice(&[0.0, 0.0, -2.9, 2.5, -0.3, -0.4, -0.3, 0.25, -0.1]),
         ]
         .into_iter()
         .enumerate()
@@ -1368,22 +1343,14 @@ mod tests {
                     port_radps: 90.0,
                     starboard_radps: -40.0,
                 };
-                let f = Model::<8, 5, 2>::transition(&twin, &x, &u, &theta, dt).jacobian;
-                let x6 = x.fixed_rows::<6>(0).into_owned();
-                let f6 = Model::<6, 5, 2>::transition(&twin6, &x6, &u, &theta, dt).jacobian;
-                for i in 0..8 {
-                    for j in 0..8 {
+                let f = Model::transition(&twin, &x, &u, &theta, dt).jacobian;
+                for i in 0..STATES {
+                    for j in 0..STATES {
                         if !A_PATTERN[i][j] {
                             assert_eq!(a[(i, j)], 0.0, "A[{i},{j}] (state {k})");
                         }
                         if !F_PATTERN[i][j] {
                             assert_eq!(f[(i, j)], 0.0, "F[{i},{j}] at dt {dt} (state {k})");
-                        }
-                        if i < 6
-                            && j < 6
-                            && !<OtterTwin<6> as Model<6, 5, 2>>::TRANSITION_PATTERN[i][j]
-                        {
-                            assert_eq!(f6[(i, j)], 0.0, "F6[{i},{j}] at dt {dt}");
                         }
                     }
                 }
@@ -1391,34 +1358,19 @@ mod tests {
             // Without effects H keeps to the sparser pattern too (and says
             // so); with them it does not, and says so.
             for t in [twin, twin.with_effects(effects)] {
-                let t6 = twin6.with_effects(t.effects);
-                let sparser = Model::<8, 5, 2>::observation_in_sparser_pattern(&t);
+                let sparser = Model::observation_in_sparser_pattern(&t);
                 assert_eq!(sparser, t.effects.is_neutral());
-                assert_eq!(
-                    Model::<6, 5, 2>::observation_in_sparser_pattern(&t6),
-                    sparser
-                );
-                let h = Model::<8, 5, 2>::observe(&t, &x).jacobian;
-                let h6 =
-                    Model::<6, 5, 2>::observe(&t6, &x.fixed_rows::<6>(0).into_owned()).jacobian;
+                let h = Model::observe(&t, &x).jacobian;
                 let pattern = if sparser {
                     H_PATTERN_WITHOUT_EFFECTS
                 } else {
                     H_PATTERN
                 };
-                let pattern6 = if sparser {
-                    <OtterTwin<6> as Model<6, 5, 2>>::SPARSER_OBSERVATION_PATTERN
-                } else {
-                    <OtterTwin<6> as Model<6, 5, 2>>::OBSERVATION_PATTERN
-                };
                 let mut outside_sparser = 0;
-                for i in 0..5 {
-                    for j in 0..8 {
+                for i in 0..MEASUREMENTS {
+                    for j in 0..STATES {
                         if !pattern[i][j] {
                             assert_eq!(h[(i, j)], 0.0, "H[{i},{j}] (state {k}, {sparser})");
-                        }
-                        if j < 6 && !pattern6[i][j] {
-                            assert_eq!(h6[(i, j)], 0.0, "H6[{i},{j}] ({sparser})");
                         }
                         if !H_PATTERN_WITHOUT_EFFECTS[i][j] && h[(i, j)] != 0.0 {
                             outside_sparser += 1;
@@ -1433,26 +1385,38 @@ mod tests {
 
     #[test]
     fn physics_sanity() {
-        let twin = OtterTwin::<6>::default();
+        let twin = OtterTwin::default();
         let full = ShaftSpeeds {
             port_radps: 103.9,
             starboard_radps: 103.9,
         };
-        let mut x = SVector::<f64, 6>::zeros();
+        let none = Faults::zeros();
+        let mut x = State::zeros();
         for _ in 0..300 {
-            x = Model::<6, 5, 2>::transition(&twin, &x, &full, &SVector::zeros(), 0.2).next;
+            x = Model::transition(&twin, &x, &full, &none, 0.2).next;
         }
         // Top speed 3.09 m/s where thrust meets linear damping.
         assert!((x[idx::U] - 3.09).abs() < 0.02, "{}", x[idx::U]);
         assert!(x[idx::V].abs() < 1e-9 && x[idx::R].abs() < 1e-9);
+        // 30 % more surge damping: the top speed falls by the same factor.
+        let mut draggy = x;
+        let fouled = Faults::from([0.0, 0.0, 0.3, 0.0, 0.0, 0.0]);
+        for _ in 0..300 {
+            draggy = Model::transition(&twin, &draggy, &full, &fouled, 0.2).next;
+        }
+        assert!(
+            (draggy[idx::U] - 3.09 / 1.3).abs() < 0.02,
+            "{}",
+            draggy[idx::U]
+        );
         // A port loss: the bow falls off to port (negative yaw rate).
         let mut y = x;
         for _ in 0..5 {
-            y = Model::<6, 5, 2>::transition(
+            y = Model::transition(
                 &twin,
                 &y,
                 &full,
-                &SVector::<f64, 2>::new(0.3, 0.0),
+                &Faults::from([0.3, 0.0, 0.0, 0.0, 0.0, 0.0]),
                 0.2,
             )
             .next;
@@ -1464,10 +1428,10 @@ mod tests {
             port_radps: 90.0,
             starboard_radps: 30.0,
         };
-        let one = Model::<6, 5, 2>::transition(&twin, &x, &u, &SVector::zeros(), 0.2).next;
+        let one = Model::transition(&twin, &x, &u, &none, 0.2).next;
         let mut fine = x;
         for _ in 0..100 {
-            fine = Model::<6, 5, 2>::transition(&twin, &fine, &u, &SVector::zeros(), 0.002).next;
+            fine = Model::transition(&twin, &fine, &u, &none, 0.002).next;
         }
         assert!(
             (one - fine).amax() < 1e-3,
@@ -1479,18 +1443,12 @@ mod tests {
 
     #[test]
     fn current_moves_the_track_not_the_water_velocity() {
-        let twin = OtterTwin::<8>::default();
-        let mut x = SVector::<f64, 8>::zeros();
+        let twin = OtterTwin::default();
+        let mut x = State::zeros();
         x[idx::CURRENT_EAST] = 0.3;
-        let t = Model::<8, 5, 2>::transition(
-            &twin,
-            &x,
-            &ShaftSpeeds::default(),
-            &SVector::zeros(),
-            1.0,
-        );
+        let t = Model::transition(&twin, &x, &ShaftSpeeds::default(), &Faults::zeros(), 1.0);
         assert!((t.next[idx::EAST] - 0.3).abs() < 1e-12);
-        let o = twin.observe8(&t.next);
+        let o = twin.observe_state(&t.next);
         assert!((o.predicted[meas::SOG] - 0.3).abs() < 1e-12);
         assert!((o.predicted[meas::COG] - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
     }

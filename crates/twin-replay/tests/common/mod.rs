@@ -193,6 +193,7 @@ pub fn generated_log(seconds: u32) -> Vec<u8> {
                 sog_mps: Some(2.0),
                 cog_rad: Some(0.5),
                 heading_rad: Some(0.45),
+                yaw_rate_radps: None,
                 hdop: Some(0.9),
             })
             .unwrap();

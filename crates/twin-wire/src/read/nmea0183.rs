@@ -1,5 +1,5 @@
 //! NMEA 0183 sentences to [`Record`](crate::measurement::Record)s: RMC, GGA, GLL, VTG, HDT, HDG, HDM,
-//! VHW, RPM and ZDA. Other sentences (wind, depth, AIS `!` sentences,
+//! ROT, VHW, RPM and ZDA. Other sentences (wind, depth, AIS `!` sentences,
 //! proprietary `$P...`) are counted as ignored.
 //!
 //! # Checks
@@ -20,7 +20,7 @@
 //! - With no date yet, `ReadOptions::assumed_date` is used (default
 //!   1970-01-01, each such record counted as `undated`); `None` rejects them
 //!   (`NoDate`).
-//! - VTG, HDT, HDG, HDM, VHW and RPM carry no time: they take the time of the
+//! - VTG, HDT, HDG, HDM, ROT, VHW and RPM carry no time: they take the time of the
 //!   latest timed sentence. A text log has no arrival times, so a "burst" of
 //!   sentences cannot be told apart from the next one; in plaka.log the
 //!   untimed VTG/VHW of a burst come before its ZDA/GLL and so are stamped
@@ -36,7 +36,8 @@
 //! latest variation seen in an RMC or HDG, else rejected as
 //! `MagneticWithoutVariation`. Courses: only the true VTG/RMC course is used;
 //! a VTG with only a magnetic course gives its speed and a `MagneticCourse`
-//! rejection. RPM: shaft (`S`) and engine (`E`) sources both map to propeller
+//! rejection. ROT: degrees per minute, negative turning to port, to rad/s;
+//! status `V` rejected. RPM: shaft (`S`) and engine (`E`) sources both map to propeller
 //! speed; numbers from the centre line, odd = starboard, even = port, 0
 //! (centre line) rejected as `UnknownPropeller`.
 
@@ -48,6 +49,7 @@ use super::{
     trim_line,
 };
 use crate::measurement::{FixMethod, MAX_SPEED_MPS, Measurement, Source, Talker};
+use crate::messages::MAX_ABS_YAW_RATE_RADPS;
 use crate::time::{SECONDS_PER_DAY, parse_ddmmyy, parse_hhmmss};
 
 /// The most comma-separated fields a sentence may have (standard sentences
@@ -367,6 +369,7 @@ impl State {
             "HDT" => self.hdt(f, source, options, emit),
             "HDG" => self.hdg(f, source, options, emit),
             "HDM" => self.hdm(f, source, options, emit),
+            "ROT" => self.rot(f, source, emit),
             "VHW" => self.vhw(f, source, options, emit),
             "RPM" => self.rpm(f, source, options, emit),
             _ => {
@@ -703,6 +706,38 @@ impl State {
         };
         let stamp = self.untimed()?;
         Self::heading(emit, stamp, source, heading);
+        Ok(())
+    }
+
+    /// `$--ROT,x.x,A`: rate of turn, degrees per minute, negative turning to
+    /// port; status `A` valid, `V` not.
+    fn rot(
+        &mut self,
+        f: &Fields<'_>,
+        source: Source,
+        emit: &mut Emit<'_>,
+    ) -> Result<(), RejectReason> {
+        match f.get(1) {
+            "A" | "" => {}
+            "V" => return Err(RejectReason::NotValid { what: "ROT status" }),
+            _ => {
+                return Err(RejectReason::BadField {
+                    field: "rot status",
+                });
+            }
+        }
+        let Some(deg_per_min) = number(f.get(0), "rate of turn")? else {
+            emit.stats.empty += 1;
+            return Ok(());
+        };
+        let radps = deg_per_min.to_radians() / 60.0;
+        if radps.abs() > MAX_ABS_YAW_RATE_RADPS {
+            return Err(RejectReason::OutOfRange {
+                field: "rate of turn",
+            });
+        }
+        let stamp = self.untimed()?;
+        Self::record(emit, stamp, source, Measurement::RateOfTurn { radps });
         Ok(())
     }
 
@@ -1131,6 +1166,29 @@ mod tests {
                 sog_mps: Some(10.0)
             }
         );
+    }
+
+    #[test]
+    fn rot_is_degrees_per_minute_to_starboard_and_refuses_invalid_or_absurd_rates() {
+        let (items, _) = decode(&[
+            "$GPZDA,120000,01,01,2026,00,00",
+            "$TIROT,-60.0,A",
+            "$TIROT,30.0,V",
+            "$TIROT,,A",
+            "$TIROT,99999.0,A",
+        ]);
+        let rates: Vec<f64> = items
+            .iter()
+            .filter_map(|i| match i.as_ref().ok()?.measurement {
+                Measurement::RateOfTurn { radps } => Some(radps),
+                _ => None,
+            })
+            .collect();
+        // -60 deg/min = -1 deg/s to port.
+        assert_eq!(rates.len(), 1, "{items:?}");
+        assert!((rates[0] + 1f64.to_radians()).abs() < 1e-12);
+        let rejected = items.iter().filter(|i| i.is_err()).count();
+        assert_eq!(rejected, 2, "{items:?}");
     }
 
     #[test]

@@ -65,6 +65,7 @@ mod tests {
             sog_mps: Some(2.77),
             cog_rad: Some(5.0265),
             heading_rad: Some(5.01),
+            yaw_rate_radps: None,
             hdop: None,
         };
         let speeds = PropellerSpeeds {
@@ -106,7 +107,7 @@ mod tests {
         fn generated_lines_round_trip(lat in -90.0f64..=90.0, lon in -180.0f64..=180.0, sog in 0.0f64..=50.0, cog in 0.0f64..std::f64::consts::TAU) {
             let fix = GnssFix {
                 time_s: 1.7e9, position: LatLon { lat_deg: lat, lon_deg: lon },
-                sog_mps: Some(sog), cog_rad: Some(cog), heading_rad: None, hdop: Some(1.1),
+                sog_mps: Some(sog), cog_rad: Some(cog), heading_rad: None, yaw_rate_radps: None, hdop: Some(1.1),
             };
             let mut w = JsonlWriter::new(Vec::new());
             w.gnss(&fix).unwrap();

@@ -149,6 +149,21 @@ pub fn hdt(talker: Talker, heading_rad: f64) -> Result<String, WriteError> {
     )))
 }
 
+/// ROT: a rate of turn (rad/s, positive to starboard) in degrees per
+/// minute; status `A`.
+pub fn rot(talker: Talker, yaw_rate_radps: f64) -> Result<String, WriteError> {
+    let r = finite(yaw_rate_radps, "yaw_rate_radps")?;
+    if r.abs() > crate::messages::MAX_ABS_YAW_RATE_RADPS {
+        return Err(WriteError::OutOfRange {
+            field: "yaw_rate_radps",
+        });
+    }
+    Ok(sentence(&format!(
+        "{talker}ROT,{:.3},A",
+        r.to_degrees() * 60.0
+    )))
+}
+
 /// RPM of one propeller shaft (source `S`): starboard is shaft 1, port shaft 2
 /// (numbered from the centre line, odd = starboard, even = port); status `A`.
 pub fn rpm(talker: Talker, side: Side, radps: f64) -> Result<String, WriteError> {
@@ -261,6 +276,7 @@ mod tests {
             sog_mps: Some(2.5),
             cog_rad: Some(1.0),
             heading_rad: None,
+            yaw_rate_radps: None,
             hdop: Some(0.9),
         }
     }

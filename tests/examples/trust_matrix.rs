@@ -1,0 +1,112 @@
+//! The trust matrix as a command: runs draws on both simulators and prints
+//! the tables of `twin_tests::trust` (the CI test runs a smaller matrix with
+//! the same bars).
+//!
+//! ```text
+//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--threads T] [--failures] [--trace I] [--list]
+//! ```
+//!
+//! `--trace I` prints what the twin published over draw `I`, every 10 s;
+//! `--list` lists the draws.
+
+use twin_core::twin::TwinConfig;
+use twin_tests::trust::{Simulator, draws, run_matrix};
+
+fn main() -> Result<(), String> {
+    let mut own = 44;
+    let mut other = 22;
+    let mut seed = 20_261_125u64;
+    let mut threads = 2;
+    let mut failures = false;
+    let mut trace: Option<usize> = None;
+    let mut list = false;
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        let mut value = |name: &str| {
+            args.next()
+                .and_then(|v| v.parse::<u64>().ok())
+                .ok_or(format!("{name} needs a number"))
+        };
+        match a.as_str() {
+            "--own" => own = value("--own")? as usize,
+            "--other" => other = value("--other")? as usize,
+            "--seed" => seed = value("--seed")?,
+            "--threads" => threads = value("--threads")? as usize,
+            "--failures" => failures = true,
+            "--list" => list = true,
+            "--trace" => trace = Some(value("--trace")? as usize),
+            _ => return Err(format!("unknown argument {a}")),
+        }
+    }
+    let mut all = draws(Simulator::Own, own, seed);
+    let mut others = draws(Simulator::Other, other, seed ^ 0x0A11_0C8E);
+    for d in &mut others {
+        d.index += own;
+    }
+    all.extend(others);
+    if list {
+        for d in &all {
+            println!("{}", d.describe());
+        }
+        return Ok(());
+    }
+    if let Some(i) = trace {
+        let draw = all
+            .iter()
+            .find(|d| d.index == i)
+            .ok_or(format!("no draw {i}"))?;
+        println!("{}", draw.describe());
+        let trial = twin_tests::trust::simulate(draw)?;
+        let record = twin_tests::trust::run(&trial, TwinConfig::default());
+        let mut next = 0.0;
+        for s in &record.samples {
+            if s.elapsed_s < next {
+                continue;
+            }
+            next = s.elapsed_s.floor() + 10.0;
+            let r = &s.report;
+            let side = |k: usize| {
+                let t = r.thrusters[k];
+                format!(
+                    "{:+.3}±{:.3}{} rel {:+.3}±{:.3}{} {}",
+                    t.loss,
+                    t.sigma,
+                    if t.excited { "*" } else { " " },
+                    t.relative_loss,
+                    t.relative_sigma,
+                    if t.relative_excited { "*" } else { " " },
+                    t.decision.status.name()
+                )
+            };
+            let damping = r
+                .profile_errors
+                .map(|d| {
+                    format!(
+                        "du {:+.2}±{:.2} dr {:+.2}±{:.2} dk {:+.2}±{:.2} dm {:+.2}±{:.2}",
+                        d[0].0, d[0].1, d[1].0, d[1].1, d[2].0, d[2].1, d[3].0, d[3].1
+                    )
+                })
+                .unwrap_or_default();
+            println!(
+                "{:6.1} s  port {}  stb {}  {damping}",
+                s.elapsed_s,
+                side(0),
+                side(1)
+            );
+        }
+        return Ok(());
+    }
+    let matrix = run_matrix(&all, TwinConfig::default(), threads)?;
+    println!(
+        "Trust matrix: {own} draws on twin-sim, {other} on the independent simulator (seed {seed})."
+    );
+    println!();
+    print!("{}", matrix.report());
+    if failures {
+        println!();
+        for f in matrix.failures() {
+            println!("- {f}");
+        }
+    }
+    Ok(())
+}

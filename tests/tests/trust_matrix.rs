@@ -1,0 +1,64 @@
+//! The trust matrix in CI: draws on both simulators whose vessel is not the
+//! twin's profile (`twin_tests::trust`), judged against bars fixed before
+//! any draw was run. The full matrix and its tables:
+//! `cargo run --release -p twin-tests --example trust_matrix`.
+//!
+//! What is asserted here is what a controller acting on `twin/fault` must be
+//! able to rely on: no healthy propeller is ever declared FAULT, and every
+//! published standard deviation (of a loss, of a loss relative to the other
+//! propeller, of a forecast position) covers the truth at its stated rate.
+
+use twin_core::twin::TwinConfig;
+use twin_tests::trust::{Matrix, Simulator, draws, other_simulator_unavailable, run_matrix};
+
+/// The draws' seed (the example's default).
+const SEED: u64 = 20_261_125;
+/// Two standard deviations cover 95 % of a normal error; the bar leaves
+/// room for a few draws' worth of sampling, no more.
+const COVERAGE_BAR: f64 = 0.9;
+
+fn matrix() -> Matrix {
+    if let Some(why) = other_simulator_unavailable() {
+        panic!("the independent simulator cannot run: {why}");
+    }
+    let mut all = draws(Simulator::Own, 11, SEED);
+    let mut others = draws(Simulator::Other, 11, SEED ^ 0x0A11_0C8E);
+    for d in &mut others {
+        d.index += 11;
+    }
+    all.extend(others);
+    run_matrix(&all, TwinConfig::default(), 2).expect("the draws run")
+}
+
+#[test]
+fn no_healthy_propeller_is_declared_fault_and_every_sigma_covers_its_truth() {
+    let m = matrix();
+    let report = m.report();
+    assert_eq!(m.false_faults(), 0, "false FAULTs\n{report}");
+    assert!(
+        m.sigma_coverage() >= COVERAGE_BAR,
+        "loss sigma coverage {:.3}\n{report}",
+        m.sigma_coverage()
+    );
+    assert!(
+        m.relative_sigma_coverage() >= COVERAGE_BAR,
+        "relative loss sigma coverage {:.3}\n{report}",
+        m.relative_sigma_coverage()
+    );
+    for horizon_s in [10.0, 30.0, 60.0] {
+        let c = m.band_coverage(horizon_s);
+        assert!(
+            c >= COVERAGE_BAR,
+            "forecast band coverage at {horizon_s} s: {c:.3}\n{report}"
+        );
+    }
+    // A guard on detection itself, not its bar: most real losses end their
+    // trial declared FAULT on their own side (how soon, and the losses that
+    // are not, are in the example's tables and docs/known-issues.md).
+    let losses = m.losses_ending_fault() + m.losses_not_ending_fault();
+    assert!(
+        2 * m.losses_ending_fault() >= losses,
+        "{} of {losses} losses end declared FAULT\n{report}",
+        m.losses_ending_fault()
+    );
+}
