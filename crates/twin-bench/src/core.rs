@@ -1,5 +1,5 @@
 //! The `core` subcommand: the estimator and the offline path, side by side
-//! in one run, as one Markdown table with PRODUCT.md's targets and a
+//! in one run, as one Markdown table with the project's targets (docs/performance.md) and a
 //! PASS/MISS beside each: the seed model's AEKF step (and the same recursion
 //! in NumPy, and their ratio), the extended model's step, the whole twin per
 //! fix, the forecast, a whole 120 s trial, parsing per format in MB/s and a
@@ -22,11 +22,11 @@ use crate::numpy;
 use crate::trial::{self, Timing, TrialSpec};
 use crate::workloads::{self, TwinInput};
 
-/// PRODUCT.md: one AEKF step of the seed model, ns.
+/// Target (docs/performance.md): one AEKF step of the seed model, ns.
 pub const TARGET_SEED_STEP_NS: f64 = 250.0;
-/// PRODUCT.md: one AEKF step of the extended model, ns.
+/// Target (docs/performance.md): one AEKF step of the extended model, ns.
 pub const TARGET_EXTENDED_STEP_NS: f64 = 1000.0;
-/// PRODUCT.md: a 4-hour log analysed offline "in well under a second", s.
+/// Target (docs/performance.md): a 4-hour log analysed offline "in well under a second", s.
 pub const TARGET_LONG_LOG_S: f64 = 1.0;
 
 /// How to run `core`.
@@ -63,7 +63,7 @@ pub struct Row {
     pub what: String,
     /// The median, formatted with its unit.
     pub value: String,
-    /// The target, if PRODUCT.md sets one.
+    /// The target, if the project sets one.
     pub target: Option<String>,
     /// Whether the target is met.
     pub pass: Option<bool>,
@@ -116,12 +116,8 @@ impl CoreReport {
         let mut s = String::new();
         let _ = writeln!(
             s,
-            "Estimator and offline path, one run of `twin-bench core` (release build, one thread)."
-        );
-        let _ = writeln!(
-            s,
             "machine: {} cores ({}), load average (1/5/15 min) {} before, {} after; \
-             figures are medians over repeated runs of each whole workload.",
+             `twin-bench core`, one thread, medians over repeated runs of each whole workload.",
             machine::cores(),
             machine::cpu_model(),
             self.load_before,

@@ -750,6 +750,7 @@ impl VesselTwin {
         }
     }
 
+    #[allow(clippy::too_many_lines)] // Split by the estimator restructuring.
     fn step_estimators(
         &mut self,
         fix: &GnssFix,

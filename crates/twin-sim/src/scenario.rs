@@ -497,7 +497,7 @@ impl DisturbanceSpec {
     /// i.e. the intensity of the continuous white noise `w` driving a
     /// velocity state, `E[w(t) w(s)] = q delta(t - s)`: over a filter step
     /// `dt` it adds about `q dt` to the velocity's variance. `m` is the
-    /// diagonal of the mass matrix: for the Otter of MODEL.md section 6,
+    /// diagonal of the mass matrix: for the Otter of docs/model.md section 6,
     /// `[85.5, 162.5, 42.65]` ([`Self::otter_acceleration_density`]). This
     /// neglects the sway-yaw coupling `M23 = 12.25 kg m`, which in the
     /// simulator also turns the sway force into yaw acceleration; see
@@ -509,7 +509,7 @@ impl DisturbanceSpec {
         sigma_a.map(|s| 2.0 * s * s * self.correlation_s)
     }
 
-    /// [`Self::acceleration_density`] with the simulator's Otter (MODEL.md
+    /// [`Self::acceleration_density`] with the simulator's Otter (docs/model.md
     /// section 6, mass matrix diagonal `[85.5, 162.5, 42.65]`).
     pub fn otter_acceleration_density(&self) -> [f64; 3] {
         self.acceleration_density(OtterParams::default().mass_matrix_diagonal())

@@ -162,19 +162,19 @@ pub struct PublishSettings {
     /// Whether each vessel's twin holds the liveliness token
     /// `{prefix}/{vessel}/twin/alive` (the contract; default true). Off,
     /// `twin/state` and its `stale` flag still say whether a twin runs.
-    /// With Zenoh 1.10 every token under the prefix made the routing of
-    /// every undeclared key dearer; since the daemon declares each vessel's
-    /// keys (`vessel.rs`), turning them off is no longer needed for speed
+    /// With Zenoh 1.10 every token under the prefix makes the routing of
+    /// every undeclared key dearer; the daemon declares each vessel's keys
+    /// (`vessel.rs`), so turning the tokens off is not needed for speed
     /// (`twin-bench daemon --no-vessel-liveliness` measures it).
     pub vessel_liveliness: bool,
     /// The token's key with `{vessel}` for the vessel id, where it is not
     /// the contract's `{prefix}/{vessel}/twin/alive` (`None`). A key outside
     /// the data prefix with the vessel's chunk two levels down, e.g.
-    /// `asv-twins/alive/{vessel}`, kept the tokens off the routing of
+    /// `asv-twins/alive/{vessel}`, keeps the tokens off the routing of
     /// undeclared keys under the prefix (Zenoh 1.10 looks at every child of
-    /// a top-level node, so `asv-alive/{vessel}` would not); since the
-    /// daemon declares each vessel's keys it is no longer needed for speed
-    /// (docs/daemon-performance.md).
+    /// a top-level node, so `asv-alive/{vessel}` would not); with the
+    /// daemon declaring each vessel's keys it is not needed for speed
+    /// (docs/performance.md).
     pub vessel_liveliness_key: Option<String>,
     /// Threads computing the forecasts, at a lower scheduling priority than
     /// the rest of the daemon (see `forecast`); 0 in the file means half the

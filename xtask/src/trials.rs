@@ -42,9 +42,9 @@ impl TrialPath {
     /// currents are set per cell).
     fn base_scenario(self) -> &'static str {
         match self {
-            TrialPath::Straight => include_str!("../../../config/scenarios/straight_new-new.toml"),
+            TrialPath::Straight => include_str!("../../config/scenarios/straight_new-new.toml"),
             TrialPath::SManoeuvre => {
-                include_str!("../../../config/scenarios/s-manoeuvre_new-new.toml")
+                include_str!("../../config/scenarios/s-manoeuvre_new-new.toml")
             }
         }
     }
@@ -364,7 +364,7 @@ pub fn correlation(x: &[f64], y: &[f64]) -> f64 {
 /// truth. RMSE per state `[north, east, speed, course]`, in metres, m/s and
 /// radians, and as a percentage of the true state's range over the window
 /// (the seed does not say what its percentages are of; the range is the
-/// strictest reading we could think of).
+/// strictest reading).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PredictionComparison {
     /// Horizon, s.
@@ -624,21 +624,80 @@ fn mean_over<'a>(
     [sum[0] / n, sum[1] / n]
 }
 
-/// The results tables of the README, as markdown: the seed's published
-/// figures, the seed's method on this simulator, and the extended twin, for
-/// every cell of the matrix (means over the noise seeds), in calm-current and
-/// 0.3 m/s-current water, and the prediction comparison.
-pub fn markdown_report(seeds: u64) -> String {
+/// The seed's published peak for a propeller set on a path, `[port,
+/// starboard]`, as text; `-` for the sets the seed did not run.
+fn published_peak(path: TrialPath, set: &str) -> String {
+    SEED_TABLE_4_8
+        .iter()
+        .find(|(n, _, _)| *n == set)
+        .map(|(_, straight, s_man)| {
+            let v = if path == TrialPath::Straight {
+                straight
+            } else {
+                s_man
+            };
+            format!("[{:.2}, {:.2}]", v[1], v[0])
+        })
+        .unwrap_or_else(|| "-".to_string())
+}
+
+/// The largest error over the cells of `path` of the estimate `f` picks.
+fn worst_error(rs: &[CellResult], path: TrialPath, f: impl Fn(&CellResult) -> [f64; 2]) -> f64 {
+    rs.iter()
+        .filter(|r| r.cell.path == path)
+        .map(|r| {
+            let t = r.cell.set.losses();
+            let e = f(r);
+            (e[0] - t[0]).abs().max((e[1] - t[1]).abs())
+        })
+        .fold(0.0f64, f64::max)
+}
+
+/// One row of the matrix table: a path and a propeller set, means over the
+/// noise seeds, in still water and in the 0.3 m/s current.
+fn matrix_row(
+    path: TrialPath,
+    set: &PropellerSet,
+    still: &[CellResult],
+    current: &[CellResult],
+) -> Option<String> {
+    let pick = |rs: &[CellResult]| -> Vec<CellResult> {
+        rs.iter()
+            .filter(|r| r.cell.path == path && r.cell.set.name == set.name)
+            .copied()
+            .collect()
+    };
+    let s = pick(still);
+    let c = pick(current);
+    let first = s.first()?;
+    let pair = |v: [f64; 2], decimals: usize| format!("[{:.decimals$}, {:.decimals$}]", v[0], v[1]);
+    let status: Vec<&str> = first.extended.status.iter().map(|st| st.name()).collect();
+    Some(format!(
+        "| {} | {} | {} | {} | {} | {} | {} +- {} | {} | {} | {} |",
+        path.name(),
+        set.name,
+        pair(set.losses(), 2),
+        published_peak(path, set.name),
+        pair(mean_over(s.iter(), |r| r.seed_method.thruster_peak), 2),
+        pair(mean_over(s.iter(), |r| r.seed_method.input_faults), 2),
+        pair(mean_over(s.iter(), |r| r.extended.loss), 3),
+        pair(mean_over(s.iter(), |r| r.extended.sigma), 3),
+        status.join("/"),
+        pair(mean_over(c.iter(), |r| r.without_current.loss), 3),
+        pair(mean_over(c.iter(), |r| r.extended.loss), 3),
+    ))
+}
+
+/// The sea-trial matrix as markdown tables (`cargo xtask trials`): every
+/// cell (means over `seeds` noise seeds) with the seed's published peak, the
+/// seed's method and the extended twin, in still water and in a 0.3 m/s
+/// current; then the worst error over the S-manoeuvre cells.
+pub fn matrix_markdown(seeds: u64) -> String {
     use std::fmt::Write;
     let mut out = String::new();
     let still = matrix(seeds, 0.0).iter().map(run_cell).collect::<Vec<_>>();
     let current = matrix(seeds, 0.3).iter().map(run_cell).collect::<Vec<_>>();
     let sets: Vec<PropellerSet> = seed_sets(0.18).into_iter().chain(loss_sets()).collect();
-
-    let _ = writeln!(
-        out,
-        "Seed's sea-trial matrix in the simulator (harbour-water disturbance, 5 Hz GNSS; means over {seeds} noise seeds). Losses and estimates are `[port, starboard]`.\n"
-    );
     let _ = writeln!(
         out,
         "| path | set (stb/port) | true loss | seed published peak | seed method peak (step 4) | seed method input faults [a, r] | extended twin | status | without current state, 0.3 m/s current | extended twin, 0.3 m/s current |"
@@ -646,83 +705,40 @@ pub fn markdown_report(seeds: u64) -> String {
     let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|");
     for path in TrialPath::BOTH {
         for set in &sets {
-            let pick = |rs: &[CellResult]| -> Vec<CellResult> {
-                rs.iter()
-                    .filter(|r| r.cell.path == path && r.cell.set.name == set.name)
-                    .copied()
-                    .collect()
-            };
-            let s = pick(&still);
-            let c = pick(&current);
-            if s.is_empty() {
-                continue;
+            if let Some(row) = matrix_row(path, set, &still, &current) {
+                let _ = writeln!(out, "{row}");
             }
-            let published = SEED_TABLE_4_8
-                .iter()
-                .find(|(n, _, _)| *n == set.name)
-                .map(|(_, straight, s_man)| {
-                    let v = if path == TrialPath::Straight {
-                        straight
-                    } else {
-                        s_man
-                    };
-                    format!("[{:.2}, {:.2}]", v[1], v[0])
-                })
-                .unwrap_or_else(|| "-".to_string());
-            let peak = mean_over(s.iter(), |r| r.seed_method.thruster_peak);
-            let input = mean_over(s.iter(), |r| r.seed_method.input_faults);
-            let ext = mean_over(s.iter(), |r| r.extended.loss);
-            let sig = mean_over(s.iter(), |r| r.extended.sigma);
-            let status: Vec<&str> = s[0].extended.status.iter().map(|st| st.name()).collect();
-            let nc = mean_over(c.iter(), |r| r.without_current.loss);
-            let ec = mean_over(c.iter(), |r| r.extended.loss);
-            let _ = writeln!(
-                out,
-                "| {} | {} | [{:.2}, {:.2}] | {} | [{:.2}, {:.2}] | [{:.2}, {:.2}] | [{:.3}, {:.3}] +- [{:.3}, {:.3}] | {} | [{:.3}, {:.3}] | [{:.3}, {:.3}] |",
-                path.name(),
-                set.name,
-                set.port_loss,
-                set.starboard_loss,
-                published,
-                peak[0],
-                peak[1],
-                input[0],
-                input[1],
-                ext[0],
-                ext[1],
-                sig[0],
-                sig[1],
-                status.join("/"),
-                nc[0],
-                nc[1],
-                ec[0],
-                ec[1]
-            );
         }
     }
-    let worst = |rs: &[CellResult], path: TrialPath, f: &dyn Fn(&CellResult) -> [f64; 2]| {
-        rs.iter()
-            .filter(|r| r.cell.path == path)
-            .map(|r| {
-                let t = r.cell.set.losses();
-                let e = f(r);
-                (e[0] - t[0]).abs().max((e[1] - t[1]).abs())
-            })
-            .fold(0.0f64, f64::max)
-    };
-    let _ = writeln!(
-        out,
-        "\nWorst error over every S-manoeuvre cell and seed: extended twin {:.3} (no current), {:.3} (0.3 m/s current); without its current state {:.3} in the current. On straight lines the extended twin reports the losses as not excited (a shared loss and a current along the track look alike); what it can tell there is the port/starboard effectiveness ratio.\n",
-        worst(&still, TrialPath::SManoeuvre, &|r| r.extended.loss),
-        worst(&current, TrialPath::SManoeuvre, &|r| r.extended.loss),
-        worst(&current, TrialPath::SManoeuvre, &|r| r.without_current.loss),
-    );
+    let _ = writeln!(out);
+    let _ = writeln!(out, "| S-manoeuvres, every cell and seed | worst error |");
+    let _ = writeln!(out, "|---|---:|");
+    let p = TrialPath::SManoeuvre;
+    for (what, worst) in [
+        (
+            "extended twin, still water",
+            worst_error(&still, p, |r| r.extended.loss),
+        ),
+        (
+            "extended twin, 0.3 m/s current",
+            worst_error(&current, p, |r| r.extended.loss),
+        ),
+        (
+            "extended twin without its current state, 0.3 m/s current",
+            worst_error(&current, p, |r| r.without_current.loss),
+        ),
+    ] {
+        let _ = writeln!(out, "| {what} | {worst:.3} |");
+    }
+    out
+}
 
-    let _ = writeln!(
-        out,
-        "Prediction after calibration on the new/broken S-manoeuvre (the seed's Table 4.9), RMSE over the horizon, means over {seeds} seeds. The seed's published percentages (x, y, U, psi) are {:?} of an undocumented reference.\n",
-        SEED_TABLE_4_9_PCT
-    );
+/// Prediction after calibration as the seed's Table 4.9, as a markdown
+/// table (`cargo xtask prediction`): RMSE over each horizon, means over
+/// `seeds` noise seeds, in calm and in harbour water.
+pub fn prediction_markdown(seeds: u64) -> String {
+    use std::fmt::Write;
+    let mut out = String::new();
     let _ = writeln!(
         out,
         "| water | horizon | seed method RMSE [north m, east m, SOG m/s, COG rad] | extended twin RMSE |"
