@@ -466,46 +466,8 @@ pub fn prediction_comparison(seed: u64, horizon_s: f64, calm_water: bool) -> Pre
     // twins' frames start at their first, noisy, fix).
     let sim_frame = LocalFrame::new(run.origin).expect("valid origin");
 
-    let score = |points: &[twin_core::twin::ForecastPoint]| {
-        let mut sq = [0.0f64; 4];
-        let mut lo = [f64::MAX; 4];
-        let mut hi = [f64::MIN; 4];
-        let mut n = 0.0f64;
-        let mut course_unwrapped = None::<f64>;
-        for p in points {
-            let Some(tr) = run
-                .truth
-                .iter()
-                .find(|t| (t.time_s - p.time_s).abs() < 1e-6)
-            else {
-                continue;
-            };
-            let c = match course_unwrapped {
-                None => tr.cog_rad,
-                Some(prev) => prev + wrap_pi(tr.cog_rad - prev),
-            };
-            course_unwrapped = Some(c);
-            let truth = [tr.north_m, tr.east_m, tr.sog_mps, c];
-            let local = sim_frame.to_local(p.position);
-            let err = [
-                local.north_m - tr.north_m,
-                local.east_m - tr.east_m,
-                p.sog_mps - tr.sog_mps,
-                wrap_pi(p.cog_rad - tr.cog_rad),
-            ];
-            for i in 0..4 {
-                sq[i] += err[i] * err[i];
-                lo[i] = lo[i].min(truth[i]);
-                hi[i] = hi[i].max(truth[i]);
-            }
-            n += 1.0;
-        }
-        let rmse = sq.map(|s| (s / n.max(1.0)).sqrt());
-        let pct = std::array::from_fn(|i| 100.0 * rmse[i] / (hi[i] - lo[i]).max(1e-9));
-        (rmse, pct)
-    };
-    let (seed_rmse, seed_rmse_pct) = score(&seed_points);
-    let (extended_rmse, extended_rmse_pct) = score(&kin_points);
+    let (seed_rmse, seed_rmse_pct) = score(&seed_points, &run, &sim_frame);
+    let (extended_rmse, extended_rmse_pct) = score(&kin_points, &run, &sim_frame);
     let extended_final_error_sigmas = kin_points
         .last()
         .and_then(|p| {
@@ -528,6 +490,51 @@ pub fn prediction_comparison(seed: u64, horizon_s: f64, calm_water: bool) -> Pre
         extended_rmse_pct,
         extended_final_error_sigmas,
     }
+}
+
+/// RMSE of forecast `points` against the truth of `run` per state `[north,
+/// east, speed, course]`, and as % of the true state's range over them.
+fn score(
+    points: &[twin_core::twin::ForecastPoint],
+    run: &SimRun,
+    sim_frame: &LocalFrame,
+) -> ([f64; 4], [f64; 4]) {
+    let mut sq = [0.0f64; 4];
+    let mut lo = [f64::MAX; 4];
+    let mut hi = [f64::MIN; 4];
+    let mut n = 0.0f64;
+    let mut course_unwrapped = None::<f64>;
+    for p in points {
+        let Some(tr) = run
+            .truth
+            .iter()
+            .find(|t| (t.time_s - p.time_s).abs() < 1e-6)
+        else {
+            continue;
+        };
+        let c = match course_unwrapped {
+            None => tr.cog_rad,
+            Some(prev) => prev + wrap_pi(tr.cog_rad - prev),
+        };
+        course_unwrapped = Some(c);
+        let truth = [tr.north_m, tr.east_m, tr.sog_mps, c];
+        let local = sim_frame.to_local(p.position);
+        let err = [
+            local.north_m - tr.north_m,
+            local.east_m - tr.east_m,
+            p.sog_mps - tr.sog_mps,
+            wrap_pi(p.cog_rad - tr.cog_rad),
+        ];
+        for i in 0..4 {
+            sq[i] += err[i] * err[i];
+            lo[i] = lo[i].min(truth[i]);
+            hi[i] = hi[i].max(truth[i]);
+        }
+        n += 1.0;
+    }
+    let rmse = sq.map(|s| (s / n.max(1.0)).sqrt());
+    let pct = std::array::from_fn(|i| 100.0 * rmse[i] / (hi[i] - lo[i]).max(1e-9));
+    (rmse, pct)
 }
 
 /// Coverage of the extended twin's forecast bands on a simulated run: the

@@ -328,61 +328,7 @@ pub fn run_with(
             scaling.push(r);
         }
     }
-    // The sustained-rate search: bisect the fleet between the largest
-    // sustained scaling run and the smallest one that was not.
-    let mut ramp: Vec<PointResult> = Vec::new();
-    for path in [Path::Daemon, Path::Raw] {
-        for _ in 0..opts.ramp_steps {
-            let tried = scaling.iter().chain(&ramp).filter(|r| r.spec.path == path);
-            let (mut lo, mut hi) = (None::<usize>, None::<usize>);
-            for r in tried {
-                let n = r.spec.vessels;
-                if sustained(r) {
-                    lo = Some(lo.map_or(n, |l| l.max(n)));
-                } else {
-                    hi = Some(hi.map_or(n, |h| h.min(n)));
-                }
-            }
-            let n = match (lo, hi) {
-                (Some(l), Some(h)) if l < h => ((l as f64) * (h as f64)).sqrt().round() as usize,
-                (None, Some(h)) => ((h as f64).sqrt().round() as usize).max(1),
-                // Every fleet tried was sustained: try twice the largest.
-                (Some(l), None) => (2 * l).min(99_999),
-                _ => break,
-            };
-            if scaling
-                .iter()
-                .chain(&ramp)
-                .any(|r| r.spec.path == path && r.spec.vessels == n)
-            {
-                break;
-            }
-            let r = point(&PointSpec {
-                path,
-                vessels: n,
-                rate_hz: Some(opts.rate_hz),
-                warmup_s: opts.warmup_s,
-                window_s: opts.ramp_window_s,
-                grace_s: opts.grace_s,
-                vessel_liveliness: opts.vessel_liveliness,
-                liveliness_outside_prefix: opts.liveliness_outside_prefix,
-            })?;
-            progress(
-                start,
-                &format!(
-                    "{path:?}, {n} vessels x {} Hz (sustained-rate search): {}; {}",
-                    opts.rate_hz,
-                    brief(&r),
-                    if sustained(&r) {
-                        "sustained"
-                    } else {
-                        "not sustained"
-                    }
-                ),
-            );
-            ramp.push(r);
-        }
-    }
+    let ramp = search(opts, &scaling, &mut point, start)?;
     let mut capacity = Vec::new();
     for path in [Path::Daemon, Path::Raw] {
         let n = opts.saturation_vessels;
@@ -411,6 +357,77 @@ pub fn run_with(
         load_after: machine::load_average_text(),
         elapsed_s: start.elapsed().as_secs_f64(),
     })
+}
+
+/// The next fleet of `path`'s sustained-rate search: between the largest
+/// sustained fleet tried and the smallest unsustained one (geometric
+/// mean), twice the largest if every one was sustained; `None` when the
+/// search has nothing new to try.
+fn next_search_fleet(tried: &[&PointResult], path: Path) -> Option<usize> {
+    let (mut lo, mut hi) = (None::<usize>, None::<usize>);
+    for r in tried.iter().filter(|r| r.spec.path == path) {
+        let n = r.spec.vessels;
+        if sustained(r) {
+            lo = Some(lo.map_or(n, |l| l.max(n)));
+        } else {
+            hi = Some(hi.map_or(n, |h| h.min(n)));
+        }
+    }
+    let n = match (lo, hi) {
+        (Some(l), Some(h)) if l < h => ((l as f64) * (h as f64)).sqrt().round() as usize,
+        (None, Some(h)) => ((h as f64).sqrt().round() as usize).max(1),
+        // Every fleet tried was sustained: try twice the largest.
+        (Some(l), None) => (2 * l).min(99_999),
+        _ => return None,
+    };
+    let new = !tried
+        .iter()
+        .any(|r| r.spec.path == path && r.spec.vessels == n);
+    new.then_some(n)
+}
+
+/// The sustained-rate search: for each path, bisect the fleet between the
+/// largest sustained scaling run and the smallest one that was not.
+fn search(
+    opts: &DaemonOptions,
+    scaling: &[PointResult],
+    point: &mut impl FnMut(&PointSpec) -> anyhow::Result<PointResult>,
+    start: Instant,
+) -> anyhow::Result<Vec<PointResult>> {
+    let mut ramp: Vec<PointResult> = Vec::new();
+    for path in [Path::Daemon, Path::Raw] {
+        for _ in 0..opts.ramp_steps {
+            let tried: Vec<&PointResult> = scaling.iter().chain(&ramp).collect();
+            let Some(n) = next_search_fleet(&tried, path) else {
+                break;
+            };
+            let r = point(&PointSpec {
+                path,
+                vessels: n,
+                rate_hz: Some(opts.rate_hz),
+                warmup_s: opts.warmup_s,
+                window_s: opts.ramp_window_s,
+                grace_s: opts.grace_s,
+                vessel_liveliness: opts.vessel_liveliness,
+                liveliness_outside_prefix: opts.liveliness_outside_prefix,
+            })?;
+            progress(
+                start,
+                &format!(
+                    "{path:?}, {n} vessels x {} Hz (sustained-rate search): {}; {}",
+                    opts.rate_hz,
+                    brief(&r),
+                    if sustained(&r) {
+                        "sustained"
+                    } else {
+                        "not sustained"
+                    }
+                ),
+            );
+            ramp.push(r);
+        }
+    }
+    Ok(ramp)
 }
 
 /// Runs every point in a child process of `opts.exe`.
