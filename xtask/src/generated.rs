@@ -220,7 +220,7 @@ pub fn fleet_table(line: &str) -> Result<String, BlockError> {
         .unwrap_or_default();
     let events = m["events_per_s"]
         .as_f64()
-        .map_or("-".to_string(), |e| thousands(e.round() as u64));
+        .map_or("-".to_string(), |e| format!("{e:.0}"));
     let rows = [
         ("vessels on the page", m["vessels"].to_string()),
         ("events reaching the page", format!("{events} per s")),
@@ -254,19 +254,6 @@ pub fn fleet_table(line: &str) -> Result<String, BlockError> {
         table.push_str(&format!("| {name} | {value} |\n"));
     }
     Ok(table)
-}
-
-/// `1234567` as `1,234,567`.
-fn thousands(n: u64) -> String {
-    let digits = n.to_string();
-    let mut out = String::new();
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i).is_multiple_of(3) {
-            out.push(',');
-        }
-        out.push(c);
-    }
-    out
 }
 
 #[cfg(test)]
@@ -305,7 +292,7 @@ mod tests {
         let line = r#"fleet page measurement: {"vessels":100,"events_per_s":1608.4,"frame_interval_ms":{"median":16.7,"p95":50,"p99":83.2,"max":150},"frames":934,"script_busy_fraction":0.131,"ingest_ms_per_event":0.0194,"render_ms_per_frame":2.17,"long_tasks":{"count":5,"longest_ms":69},"follow_ms":[54,183],"skipped_events":0}"#;
         let t = fleet_table(line).unwrap();
         assert!(
-            t.contains("| events reaching the page | 1,608 per s |"),
+            t.contains("| events reaching the page | 1608 per s |"),
             "{t}"
         );
         assert!(t.contains("| long tasks | 5, the longest 69 ms |"), "{t}");

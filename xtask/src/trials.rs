@@ -14,6 +14,7 @@ use twin_core::decision::ThrusterStatus;
 use twin_core::geodesy::{LocalFrame, wrap_pi};
 use twin_core::models::kinematic::KinematicInput;
 use twin_core::models::otter_twin::ShaftSpeeds;
+use twin_core::sample::PropellerSpeeds;
 use twin_core::twin::{FaultSource, TwinConfig, VesselTwin};
 use twin_sim::{CurrentSpec, Scenario, SensorEvent, SimRun};
 
@@ -441,17 +442,9 @@ pub fn prediction_comparison(seed: u64, horizon_s: f64, calm_water: bool) -> Pre
         }
     }
     for f in &fixes {
-        let in_interval: Vec<_> = props
-            .iter()
-            .filter(|p| p.time_s > t_prev && p.time_s <= f.time_s)
-            .collect();
-        let n = in_interval.len().max(1) as f64;
         kinetic_inputs.push((
             f.time_s - t_prev,
-            ShaftSpeeds {
-                port_radps: in_interval.iter().map(|p| p.port_radps).sum::<f64>() / n,
-                starboard_radps: in_interval.iter().map(|p| p.starboard_radps).sum::<f64>() / n,
-            },
+            mean_shaft_speeds(&props, t_prev, f.time_s),
         ));
         let u = match (f.sog_mps, f.cog_rad) {
             (Some(s), Some(c)) => deriver.push(f.time_s, s, wrap_pi(c)).unwrap_or_default(),
@@ -537,6 +530,20 @@ fn score(
     (rmse, pct)
 }
 
+/// The mean of the measured shaft speeds in `(from_s, to_s]` (zero where
+/// there are none): the recorded input of one GNSS interval.
+fn mean_shaft_speeds(props: &[PropellerSpeeds], from_s: f64, to_s: f64) -> ShaftSpeeds {
+    let in_interval: Vec<_> = props
+        .iter()
+        .filter(|p| p.time_s > from_s && p.time_s <= to_s)
+        .collect();
+    let n = in_interval.len().max(1) as f64;
+    ShaftSpeeds {
+        port_radps: in_interval.iter().map(|p| p.port_radps).sum::<f64>() / n,
+        starboard_radps: in_interval.iter().map(|p| p.starboard_radps).sum::<f64>() / n,
+    }
+}
+
 /// Coverage of the extended twin's forecast bands on a simulated run: the
 /// twin is calibrated up to each split time, then forecasts open loop through
 /// the recorded propeller speeds to the end of the run; every forecast point's
@@ -570,17 +577,9 @@ pub fn forecast_coverage(
         };
         let mut inputs = Vec::new();
         for f in run.gnss_fixes().filter(|f| f.time_s > t_split) {
-            let in_interval: Vec<_> = props
-                .iter()
-                .filter(|p| p.time_s > t_prev && p.time_s <= f.time_s)
-                .collect();
-            let k = in_interval.len().max(1) as f64;
             inputs.push((
                 f.time_s - t_prev,
-                ShaftSpeeds {
-                    port_radps: in_interval.iter().map(|p| p.port_radps).sum::<f64>() / k,
-                    starboard_radps: in_interval.iter().map(|p| p.starboard_radps).sum::<f64>() / k,
-                },
+                mean_shaft_speeds(&props, t_prev, f.time_s),
             ));
             t_prev = f.time_s;
         }

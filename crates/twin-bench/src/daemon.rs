@@ -170,6 +170,29 @@ impl DaemonOptions {
     }
 }
 
+impl DaemonOptions {
+    /// A point of this run: `vessels` on `path` at `rate_hz` per vessel
+    /// (`None`: flat out), measured over `window_s`.
+    pub fn spec(
+        &self,
+        path: Path,
+        vessels: usize,
+        rate_hz: Option<f64>,
+        window_s: f64,
+    ) -> PointSpec {
+        PointSpec {
+            path,
+            vessels,
+            rate_hz,
+            warmup_s: self.warmup_s,
+            window_s,
+            grace_s: self.grace_s,
+            vessel_liveliness: self.vessel_liveliness,
+            liveliness_outside_prefix: self.liveliness_outside_prefix,
+        }
+    }
+}
+
 /// What `daemon` measured.
 #[derive(Debug, Clone)]
 pub struct DaemonReport {
@@ -310,16 +333,7 @@ pub fn run_with(
     let mut scaling = Vec::new();
     for &n in &opts.vessels {
         for path in [Path::Daemon, Path::Raw] {
-            let spec = PointSpec {
-                path,
-                vessels: n,
-                rate_hz: Some(opts.rate_hz),
-                warmup_s: opts.warmup_s,
-                window_s: opts.window_s,
-                grace_s: opts.grace_s,
-                vessel_liveliness: opts.vessel_liveliness,
-                liveliness_outside_prefix: opts.liveliness_outside_prefix,
-            };
+            let spec = opts.spec(path, n, Some(opts.rate_hz), opts.window_s);
             let r = point(&spec)?;
             progress(
                 start,
@@ -332,16 +346,7 @@ pub fn run_with(
     let mut capacity = Vec::new();
     for path in [Path::Daemon, Path::Raw] {
         let n = opts.saturation_vessels;
-        let flat = point(&PointSpec {
-            path,
-            vessels: n,
-            rate_hz: None,
-            warmup_s: opts.warmup_s,
-            window_s: opts.saturation_window_s,
-            grace_s: opts.grace_s,
-            vessel_liveliness: opts.vessel_liveliness,
-            liveliness_outside_prefix: opts.liveliness_outside_prefix,
-        })?;
+        let flat = point(&opts.spec(path, n, None, opts.saturation_window_s))?;
         progress(
             start,
             &format!("{path:?}, {n} vessels flat out: {}", brief(&flat)),
@@ -401,16 +406,7 @@ fn search(
             let Some(n) = next_search_fleet(&tried, path) else {
                 break;
             };
-            let r = point(&PointSpec {
-                path,
-                vessels: n,
-                rate_hz: Some(opts.rate_hz),
-                warmup_s: opts.warmup_s,
-                window_s: opts.ramp_window_s,
-                grace_s: opts.grace_s,
-                vessel_liveliness: opts.vessel_liveliness,
-                liveliness_outside_prefix: opts.liveliness_outside_prefix,
-            })?;
+            let r = point(&opts.spec(path, n, Some(opts.rate_hz), opts.ramp_window_s))?;
             progress(
                 start,
                 &format!(

@@ -383,26 +383,21 @@ fn vessel_settings(raw: RawVessels) -> Result<VesselSettings, SettingsError> {
             raw.drop_after_silence_s.unwrap_or(300.0),
         )?,
         stale_after_s: positive("vessels.stale_after_s", raw.stale_after_s.unwrap_or(2.0))?,
-        max_vessels: match raw.max_vessels.unwrap_or(20_000) {
-            0 => {
-                return Err(SettingsError::Invalid {
-                    key: "vessels.max_vessels",
-                    reason: "must be at least 1".into(),
-                });
-            }
-            n => n,
-        },
-        queue_depth: match raw.queue_depth.unwrap_or(256) {
-            0 => {
-                return Err(SettingsError::Invalid {
-                    key: "vessels.queue_depth",
-                    reason: "must be at least 1".into(),
-                });
-            }
-            n => n,
-        },
+        max_vessels: at_least_one("vessels.max_vessels", raw.max_vessels.unwrap_or(20_000))?,
+        queue_depth: at_least_one("vessels.queue_depth", raw.queue_depth.unwrap_or(256))?,
     };
     Ok(vessels)
+}
+
+/// `n`, refused when zero.
+fn at_least_one(key: &'static str, n: usize) -> Result<usize, SettingsError> {
+    if n == 0 {
+        return Err(SettingsError::Invalid {
+            key,
+            reason: "must be at least 1".into(),
+        });
+    }
+    Ok(n)
 }
 
 /// `[publish]`, validated.
