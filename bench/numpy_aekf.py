@@ -46,7 +46,7 @@ except ImportError:
     sys.stderr.write(
         "numpy_aekf.py: NumPy is not installed for this Python "
         f"({sys.executable}). Install it with:\n"
-        "    python3 -m pip install -r bench/requirements.txt\n"
+        "    python3 -m pip install -r requirements.txt\n"
     )
     sys.exit(3)
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """otter6dof: an independent 6-DOF simulator of the Otter USV, for the
 hidden-effect tests of `twin diagnose` on logs from a simulator other than
-the project's own (PRODUCT.md, "Hidden effects").
+the project's own (docs/accuracy.md, "Hidden effects").
 
 What it is
 ==========
@@ -73,7 +73,7 @@ Parameters (Fossen's Otter, 25 kg payload)
   n_max = sqrt(0.5 24.4 g / k_ahead) = 103.9 rad/s, n_min = -101.7 rad/s,
   T_n = 0.1 s. Cross-flow: C_D = 1.0 (Hoerner's curve at B_pont / 2T = 0.64).
   The resulting surge-sway-yaw block of M is [[85.5, 0, 0], [0, 162.5, 12.25],
-  [0, 12.25, 42.65]] (MODEL.md section 6); `--check` prints it.
+  [0, 12.25, 42.65]] (docs/model.md section 6); `--check` prints it.
 
   One deliberate difference from Fossen's code: there the payload's weight is
   also applied as an external force on top of a displacement that already
@@ -135,7 +135,7 @@ How it differs from the project's simulator (crates/twin-sim)
   (10 Hz), a different disturbance (no wind), different sensor noise
   (velocity noise of 0.03 m/s, shaft noise of 1.5 rpm rounded to 0.1 rpm,
   the heading at 5 Hz read with the fix, an antenna above the waterline)
-  and NumPy's random generator. The numbers of the hull (MODEL.md section 6)
+  and NumPy's random generator. The numbers of the hull (docs/model.md section 6)
   are Fossen's in both. Nothing is shared with crates/twin-sim or
   crates/twin-core.
 
@@ -145,7 +145,7 @@ Output
     {"type":"gnss","time":...,"lat_deg","lon_deg","sog_mps","cog_rad","heading_rad","hdop"}
     at 5 Hz and {"type":"actuators","time":...,"rpm":{"port","starboard"}} at
     10 Hz, in time order; positions on WGS-84 through the flat-earth frame
-    of MODEL.md section 2 around the origin.
+    of docs/model.md section 2 around the origin.
   --truth TRUTH: a JSON file with the effects, the parameters and a 1 Hz
     track of the true state (never read by the diagnosis).
 
@@ -173,7 +173,7 @@ GRAVITY_MPS2 = 9.81
 WATER_DENSITY_KGPM3 = 1025.0
 RPM_PER_RADPS = 60.0 / (2.0 * math.pi)
 
-# WGS-84 (MODEL.md section 2).
+# WGS-84 (docs/model.md section 2).
 WGS84_A_M = 6378137.0
 WGS84_F = 1.0 / 298.257223563
 WGS84_E2 = 2.0 * WGS84_F - WGS84_F**2
@@ -733,7 +733,7 @@ class RunConfig:
 
 
 def flat_to_geodetic(north_m, east_m, lat0_deg, lon0_deg):
-    """Local flat-earth north/east to latitude/longitude (MODEL.md section 2)."""
+    """Local flat-earth north/east to latitude/longitude (docs/model.md section 2)."""
     lat0 = math.radians(lat0_deg)
     s2 = math.sin(lat0) ** 2
     r_n = WGS84_A_M / math.sqrt(1.0 - WGS84_E2 * s2)

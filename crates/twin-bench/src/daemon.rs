@@ -1,5 +1,5 @@
 //! The `daemon` subcommand: the live daemon under load, side by side with
-//! raw Zenoh pub/sub, in one run, as PRODUCT.md's "Speed" section asks
+//! raw Zenoh pub/sub, in one run, as the project's speed targets ask (docs/performance.md)
 //! ("1,000 vessels at 10 Hz each through Zenoh on loopback with p99
 //! GNSS-in to fault-out latency under 5 ms; its maximum sustained rate at
 //! least a quarter of raw Zenoh pub/sub on the same payloads").
@@ -33,14 +33,14 @@
 //! # How
 //! Every point runs in a fresh child process (this binary, hidden
 //! subcommand `daemon-point`, one JSON line back), so that RSS and CPU
-//! belong to that point alone and a saturated daemon is not left draining
-//! into the next one. A point warms up (at least `--warmup-s`, and until
-//! every vessel has been heard from), measures one window, waits the grace
-//! period, and exits. The full run warms up 5 s: near the daemon's limit
-//! the start (a task, a twin and a first forecast per vessel) lasts
-//! seconds, and with 1.5 s it fell into the window (at 5,600 vessels x
-//! 10 Hz, p99 73-128 ms after 1.5 s against 17-47 ms after 8 s, same
-//! build). Three sets of runs:
+//! belong to that point alone and a saturated daemon does not drain into
+//! the next one. A point warms up (at least `--warmup-s`, and until every
+//! vessel has been heard from), measures one window, waits the grace
+//! period, and shuts down (each wait bounded, see [`load`]). The full run
+//! warms up at least 5 s: near the daemon's limit the start (a task, a twin
+//! and a first forecast per vessel) lasts seconds, and a shorter warm-up
+//! puts it into the window (at 5,600 vessels x 10 Hz, p99 73-128 ms after
+//! 1.5 s against 17-47 ms after 8 s). Three sets of runs:
 //! 1. scaling: 10, 100, 1,000, 10,000 vessels at 10 Hz, daemon and raw;
 //! 2. the maximum sustained rate of each path at 10 Hz per vessel: a run
 //!    is sustained when at least 95 % of the plan was sent, the generator
@@ -51,7 +51,7 @@
 //!    smallest that was not, the fleet is bisected (geometric mean, a few
 //!    steps). The largest delivered rate of a sustained run is the path's
 //!    maximum sustained rate; the daemon's over raw Zenoh's is the ratio
-//!    PRODUCT.md sets at >= 0.25;
+//!    the targets set at >= 0.25;
 //! 3. capacity: each path flat out (1,000 vessels, no pacing, the
 //!    publishers' back-pressure setting the pace), the received rate.
 //!
@@ -60,10 +60,12 @@
 //! machine whose load is printed beside them. Nothing here is asserted in a
 //! test: the test (`tests/daemon_load.rs`) checks the plumbing only.
 
+mod generator;
 pub mod histogram;
 pub mod load;
 pub mod motion;
 pub mod procstat;
+mod receiver;
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -76,9 +78,9 @@ use crate::core::thousands;
 use crate::machine;
 use load::{Path, PointResult, PointSpec};
 
-/// PRODUCT.md: p99 GNSS-in to fault-out at 1,000 vessels x 10 Hz, ms.
+/// Target (docs/performance.md): p99 GNSS-in to fault-out at 1,000 vessels x 10 Hz, ms.
 pub const TARGET_P99_MS: f64 = 5.0;
-/// PRODUCT.md: the daemon's maximum sustained rate over raw Zenoh's.
+/// Target (docs/performance.md): the daemon's maximum sustained rate over raw Zenoh's.
 pub const TARGET_RATIO: f64 = 0.25;
 /// The headline fleet.
 pub const HEADLINE_VESSELS: usize = 1000;
@@ -168,6 +170,29 @@ impl DaemonOptions {
     }
 }
 
+impl DaemonOptions {
+    /// A point of this run: `vessels` on `path` at `rate_hz` per vessel
+    /// (`None`: flat out), measured over `window_s`.
+    pub fn spec(
+        &self,
+        path: Path,
+        vessels: usize,
+        rate_hz: Option<f64>,
+        window_s: f64,
+    ) -> PointSpec {
+        PointSpec {
+            path,
+            vessels,
+            rate_hz,
+            warmup_s: self.warmup_s,
+            window_s,
+            grace_s: self.grace_s,
+            vessel_liveliness: self.vessel_liveliness,
+            liveliness_outside_prefix: self.liveliness_outside_prefix,
+        }
+    }
+}
+
 /// What `daemon` measured.
 #[derive(Debug, Clone)]
 pub struct DaemonReport {
@@ -201,8 +226,8 @@ pub fn sustained(r: &PointResult) -> bool {
 }
 
 /// Whether the generator stayed within [`SUSTAINED_GENERATOR_LAG_MS`] of
-/// its schedule through the window (a run without a lag figure, from
-/// before it was recorded, counts as on schedule).
+/// its schedule through the window (a run without a lag figure, flat out,
+/// counts as on schedule).
 pub fn on_schedule(r: &PointResult) -> bool {
     r.generator_max_lag_ms
         .is_none_or(|lag| lag <= SUSTAINED_GENERATOR_LAG_MS)
@@ -308,16 +333,7 @@ pub fn run_with(
     let mut scaling = Vec::new();
     for &n in &opts.vessels {
         for path in [Path::Daemon, Path::Raw] {
-            let spec = PointSpec {
-                path,
-                vessels: n,
-                rate_hz: Some(opts.rate_hz),
-                warmup_s: opts.warmup_s,
-                window_s: opts.window_s,
-                grace_s: opts.grace_s,
-                vessel_liveliness: opts.vessel_liveliness,
-                liveliness_outside_prefix: opts.liveliness_outside_prefix,
-            };
+            let spec = opts.spec(path, n, Some(opts.rate_hz), opts.window_s);
             let r = point(&spec)?;
             progress(
                 start,
@@ -326,45 +342,71 @@ pub fn run_with(
             scaling.push(r);
         }
     }
-    // The sustained-rate search: bisect the fleet between the largest
-    // sustained scaling run and the smallest one that was not.
+    let ramp = search(opts, &scaling, &mut point, start)?;
+    let mut capacity = Vec::new();
+    for path in [Path::Daemon, Path::Raw] {
+        let n = opts.saturation_vessels;
+        let flat = point(&opts.spec(path, n, None, opts.saturation_window_s))?;
+        progress(
+            start,
+            &format!("{path:?}, {n} vessels flat out: {}", brief(&flat)),
+        );
+        capacity.push(flat);
+    }
+    Ok(DaemonReport {
+        options: opts.clone(),
+        scaling,
+        ramp,
+        capacity,
+        load_before,
+        load_after: machine::load_average_text(),
+        elapsed_s: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// The next fleet of `path`'s sustained-rate search: between the largest
+/// sustained fleet tried and the smallest unsustained one (geometric
+/// mean), twice the largest if every one was sustained; `None` when the
+/// search has nothing new to try.
+fn next_search_fleet(tried: &[&PointResult], path: Path) -> Option<usize> {
+    let (mut lo, mut hi) = (None::<usize>, None::<usize>);
+    for r in tried.iter().filter(|r| r.spec.path == path) {
+        let n = r.spec.vessels;
+        if sustained(r) {
+            lo = Some(lo.map_or(n, |l| l.max(n)));
+        } else {
+            hi = Some(hi.map_or(n, |h| h.min(n)));
+        }
+    }
+    let n = match (lo, hi) {
+        (Some(l), Some(h)) if l < h => ((l as f64) * (h as f64)).sqrt().round() as usize,
+        (None, Some(h)) => ((h as f64).sqrt().round() as usize).max(1),
+        // Every fleet tried was sustained: try twice the largest.
+        (Some(l), None) => (2 * l).min(99_999),
+        _ => return None,
+    };
+    let new = !tried
+        .iter()
+        .any(|r| r.spec.path == path && r.spec.vessels == n);
+    new.then_some(n)
+}
+
+/// The sustained-rate search: for each path, bisect the fleet between the
+/// largest sustained scaling run and the smallest one that was not.
+fn search(
+    opts: &DaemonOptions,
+    scaling: &[PointResult],
+    point: &mut impl FnMut(&PointSpec) -> anyhow::Result<PointResult>,
+    start: Instant,
+) -> anyhow::Result<Vec<PointResult>> {
     let mut ramp: Vec<PointResult> = Vec::new();
     for path in [Path::Daemon, Path::Raw] {
         for _ in 0..opts.ramp_steps {
-            let tried = scaling.iter().chain(&ramp).filter(|r| r.spec.path == path);
-            let (mut lo, mut hi) = (None::<usize>, None::<usize>);
-            for r in tried {
-                let n = r.spec.vessels;
-                if sustained(r) {
-                    lo = Some(lo.map_or(n, |l| l.max(n)));
-                } else {
-                    hi = Some(hi.map_or(n, |h| h.min(n)));
-                }
-            }
-            let n = match (lo, hi) {
-                (Some(l), Some(h)) if l < h => ((l as f64) * (h as f64)).sqrt().round() as usize,
-                (None, Some(h)) => ((h as f64).sqrt().round() as usize).max(1),
-                // Every fleet tried was sustained: try twice the largest.
-                (Some(l), None) => (2 * l).min(99_999),
-                _ => break,
-            };
-            if scaling
-                .iter()
-                .chain(&ramp)
-                .any(|r| r.spec.path == path && r.spec.vessels == n)
-            {
+            let tried: Vec<&PointResult> = scaling.iter().chain(&ramp).collect();
+            let Some(n) = next_search_fleet(&tried, path) else {
                 break;
-            }
-            let r = point(&PointSpec {
-                path,
-                vessels: n,
-                rate_hz: Some(opts.rate_hz),
-                warmup_s: opts.warmup_s,
-                window_s: opts.ramp_window_s,
-                grace_s: opts.grace_s,
-                vessel_liveliness: opts.vessel_liveliness,
-                liveliness_outside_prefix: opts.liveliness_outside_prefix,
-            })?;
+            };
+            let r = point(&opts.spec(path, n, Some(opts.rate_hz), opts.ramp_window_s))?;
             progress(
                 start,
                 &format!(
@@ -381,34 +423,7 @@ pub fn run_with(
             ramp.push(r);
         }
     }
-    let mut capacity = Vec::new();
-    for path in [Path::Daemon, Path::Raw] {
-        let n = opts.saturation_vessels;
-        let flat = point(&PointSpec {
-            path,
-            vessels: n,
-            rate_hz: None,
-            warmup_s: opts.warmup_s,
-            window_s: opts.saturation_window_s,
-            grace_s: opts.grace_s,
-            vessel_liveliness: opts.vessel_liveliness,
-            liveliness_outside_prefix: opts.liveliness_outside_prefix,
-        })?;
-        progress(
-            start,
-            &format!("{path:?}, {n} vessels flat out: {}", brief(&flat)),
-        );
-        capacity.push(flat);
-    }
-    Ok(DaemonReport {
-        options: opts.clone(),
-        scaling,
-        ramp,
-        capacity,
-        load_before,
-        load_after: machine::load_average_text(),
-        elapsed_s: start.elapsed().as_secs_f64(),
-    })
+    Ok(ramp)
 }
 
 /// Runs every point in a child process of `opts.exe`.
@@ -586,82 +601,45 @@ impl DaemonReport {
         )
     }
 
-    /// The tables with their context, as Markdown.
+    /// The run's tables as Markdown: the machine, the headline figures with
+    /// the targets, the scaling and search points, the flat-out runs, and
+    /// notes on this run's points (capped warm-ups, unattributable
+    /// messages, CPU by thread). How the benchmark measures is in
+    /// docs/performance.md, written by hand.
     pub fn table(&self) -> String {
-        let mut s = String::new();
         let o = &self.options;
-        let _ = writeln!(
-            s,
-            "The daemon under load against raw Zenoh, one run of `twin-bench daemon{}` \
-             (release build; twind and every Zenoh session in one process, TCP on loopback).",
-            if o.quick { " --quick" } else { "" }
-        );
-        let _ = writeln!(
-            s,
-            "machine: {} cores ({}), load average (1/5/15 min) {} before, {} after; \
-             each figure is one measurement window in this run ({} s scaling), \
-             latency percentiles over every fix of the window; whole run {:.0} s.",
+        let mut s = format!(
+            "machine: {} cores ({}), load average (1/5/15 min) {} before, {} after; `twin-bench daemon{}{}`, whole run {:.0} s.\n\n",
             machine::cores(),
             machine::cpu_model(),
             self.load_before,
             self.load_after,
-            o.window_s,
+            if o.quick { " --quick" } else { "" },
+            liveliness_flag(o),
             self.elapsed_s
         );
-        let _ = writeln!(s);
+        s.push_str(&self.headline_table());
+        s.push('\n');
+        s.push_str(&self.points_table());
+        if !self.capacity.is_empty() {
+            s.push('\n');
+            s.push_str(&self.flat_out_table());
+        }
+        s.push('\n');
+        for n in self.notes() {
+            s.push_str(&n);
+            s.push('\n');
+        }
+        s
+    }
 
-        // 1. The headline, with the targets.
-        let _ = writeln!(s, "| measurement | figure | target | verdict |");
-        let _ = writeln!(s, "|---|---:|---|---|");
-        let verdict = |ok: bool| if ok { "met" } else { "missed" };
-        let hz = o.rate_hz;
+    /// The headline figures beside the targets.
+    fn headline_table(&self) -> String {
+        let mut s =
+            String::from("| measurement | figure | target | verdict |\n|---|---:|---|---|\n");
+        let hz = self.options.rate_hz;
         match self.scaling_point(Path::Daemon, HEADLINE_VESSELS) {
-            Some(d) => {
-                let what = format!(
-                    "daemon, {} vessels x {hz} Hz ({} fixes/s + as many shaft-speed messages)",
-                    thousands(HEADLINE_VESSELS as u64),
-                    rate_text(HEADLINE_VESSELS as f64 * hz)
-                );
-                let ok = self.headline_p99_met().unwrap_or(false);
-                let _ = writeln!(
-                    s,
-                    "| {what}: p99 GNSS publish -> fault receive | {} | < {TARGET_P99_MS} ms{} | {} |",
-                    p99_text(d),
-                    if hz == 10.0 { "" } else { " (set for 10 Hz)" },
-                    verdict(ok)
-                );
-                let _ = writeln!(
-                    s,
-                    "| same: p50 / max latency | {} / {} | | |",
-                    ms_text(d.latency.p50_ns),
-                    ms_text(d.latency.max_ns)
-                );
-                let _ = writeln!(
-                    s,
-                    "| same: fixes sent / faults received per s; lost | {} / {}; {} of {} | | |",
-                    rate_text(d.offered_fixes_per_s),
-                    rate_text(d.received_per_s),
-                    thousands(d.lost()),
-                    thousands(d.fixes_sent)
-                );
-                let _ = writeln!(
-                    s,
-                    "| same: CPU of the process (daemon + generator + subscriber + Zenoh) | {} of one core | | |",
-                    cpu_text(d)
-                );
-                let _ = writeln!(
-                    s,
-                    "| same: RSS before the first message -> at the end; per vessel | {} -> {}; {} | | |",
-                    mb_text(d.rss_base_kib),
-                    mb_text(d.rss_end_kib),
-                    per_vessel_text(d)
-                );
-                let _ = writeln!(
-                    s,
-                    "| same: forecasts computed per s (each vessel's, every) | {} | | |",
-                    forecasts_text(d)
-                );
-            }
+            Some(d) => s.push_str(&self.headline_rows(d, hz)),
             None => {
                 let _ = writeln!(
                     s,
@@ -686,6 +664,64 @@ impl DaemonReport {
                 ms_text(r.latency.max_ns)
             );
         }
+        s.push_str(&self.rate_rows());
+        s
+    }
+
+    /// The headline fleet's rows: latency against the target, throughput,
+    /// CPU, memory and forecasts.
+    fn headline_rows(&self, d: &PointResult, hz: f64) -> String {
+        let mut s = String::new();
+        let what = format!(
+            "daemon, {} vessels x {hz} Hz ({} fixes/s + as many shaft-speed messages)",
+            thousands(HEADLINE_VESSELS as u64),
+            rate_text(HEADLINE_VESSELS as f64 * hz)
+        );
+        let _ = writeln!(
+            s,
+            "| {what}: p99 GNSS publish -> fault receive | {} | < {TARGET_P99_MS} ms{} | {} |",
+            p99_text(d),
+            if hz == 10.0 { "" } else { " (set for 10 Hz)" },
+            verdict(self.headline_p99_met().unwrap_or(false))
+        );
+        let _ = writeln!(
+            s,
+            "| same: p50 / max latency | {} / {} | | |",
+            ms_text(d.latency.p50_ns),
+            ms_text(d.latency.max_ns)
+        );
+        let _ = writeln!(
+            s,
+            "| same: fixes sent / faults received per s; lost | {} / {}; {} of {} | | |",
+            rate_text(d.offered_fixes_per_s),
+            rate_text(d.received_per_s),
+            thousands(d.lost()),
+            thousands(d.fixes_sent)
+        );
+        let _ = writeln!(
+            s,
+            "| same: CPU of the process (daemon + generator + subscriber + Zenoh) | {} of one core | | |",
+            cpu_text(d)
+        );
+        let _ = writeln!(
+            s,
+            "| same: RSS before the first message -> at the end; per vessel | {} -> {}; {} | | |",
+            mb_text(d.rss_base_kib),
+            mb_text(d.rss_end_kib),
+            per_vessel_text(d)
+        );
+        let _ = writeln!(
+            s,
+            "| same: forecasts computed per s (each vessel's, every) | {} | | |",
+            forecasts_text(d)
+        );
+        s
+    }
+
+    /// Each path's maximum sustained rate, their ratio against the target,
+    /// and the flat-out capacity.
+    fn rate_rows(&self) -> String {
+        let mut s = String::new();
         let sustained_text = |p: Path| {
             self.max_sustained(p).map_or("none sustained".into(), |r| {
                 format!(
@@ -729,28 +765,14 @@ impl DaemonReport {
                 d.received_per_s / r.received_per_s
             );
         }
+        s
+    }
 
-        // 2. Scaling and the sustained-rate search.
-        let _ = writeln!(s);
-        let _ = writeln!(
-            s,
-            "Scaling at {hz} Hz per vessel, and the sustained-rate search (\"search\": {} s windows). \
-             Sustained: >= {pct:.0} % of the planned fixes sent, the generator never more than \
-             {SUSTAINED_GENERATOR_LAG_MS} ms behind its schedule in the window, >= {pct:.0} % of the fixes sent \
-             delivered within {} s after the window, and p99 <= {SUSTAINED_P99_MS} ms. CPU: the whole process, % of one core. RSS: the \
-             point's own process.",
-            o.ramp_window_s,
-            o.grace_s,
-            pct = SUSTAINED_DELIVERED * 100.0,
-        );
-        let _ = writeln!(s);
-        let _ = writeln!(
-            s,
-            "| vessels | path | run | fixes/s planned | sent | faults (raw: fixes) received/s | lost | p50 | p99 | max | CPU | warm-up | generator lag (max, window) | RSS before -> end | per vessel | forecasts/s | sustained |"
-        );
-        let _ = writeln!(
-            s,
-            "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"
+    /// Every paced point, scaling and search, daemon first, by fleet.
+    fn points_table(&self) -> String {
+        let mut s = String::from(
+            "| vessels | path | run | fixes/s planned | sent | faults (raw: fixes) received/s | lost | p50 | p99 | max | CPU | warm-up | generator lag (max, window) | RSS before -> end | per vessel | forecasts/s | sustained |\n\
+             |---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n",
         );
         let mut paced: Vec<(&str, &PointResult)> = self
             .scaling
@@ -779,209 +801,55 @@ impl DaemonReport {
                 mb_text(r.rss_end_kib),
                 per_vessel_text(r),
                 forecasts_text(r),
-                if sustained(r) {
-                    "yes"
-                } else if limited_by_generator(r) {
-                    "no: generator-bound"
-                } else if !on_schedule(r) {
-                    "no: behind schedule"
-                } else {
-                    "no"
-                }
+                sustained_text(r)
             );
-        }
-
-        // 3. Flat out.
-        if !self.capacity.is_empty() {
-            let _ = writeln!(s);
-            let _ = writeln!(
-                s,
-                "Flat out ({} s windows): no pacing, the publishers block when Zenoh's queues are full; \
-                 latency then is mostly queueing.",
-                o.saturation_window_s
-            );
-            let _ = writeln!(s);
-            let _ = writeln!(
-                s,
-                "| path | fleet | fixes/s sent | received/s | p50 | p99 | CPU |"
-            );
-            let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---:|");
-            for r in &self.capacity {
-                let _ = writeln!(
-                    s,
-                    "| {} | {} | {} | {} | {} | {} | {} |",
-                    path_text(r.spec.path),
-                    fleet_text(r),
-                    rate_text(r.offered_fixes_per_s),
-                    rate_text(r.received_per_s),
-                    ms_text(r.latency.p50_ns),
-                    p99_text(r),
-                    cpu_text(r)
-                );
-            }
-        }
-
-        // Notes.
-        let _ = writeln!(s);
-        for n in self.notes() {
-            let _ = writeln!(s, "{n}");
         }
         s
     }
 
+    /// The flat-out runs.
+    fn flat_out_table(&self) -> String {
+        let mut s = String::from(
+            "| path | fleet | fixes/s sent | received/s | p50 | p99 | CPU |\n|---|---|---:|---:|---:|---:|---:|\n",
+        );
+        for r in &self.capacity {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} | {} |",
+                path_text(r.spec.path),
+                fleet_text(r),
+                rate_text(r.offered_fixes_per_s),
+                rate_text(r.received_per_s),
+                ms_text(r.latency.p50_ns),
+                p99_text(r),
+                cpu_text(r)
+            );
+        }
+        s
+    }
+
+    /// Notes on this run's points: the load's sizes, CPU by thread, capped
+    /// warm-ups, unattributable messages, generator-bound runs.
     fn notes(&self) -> Vec<String> {
         let mut notes = Vec::new();
-        let settings = load::bench_settings(
-            self.options.vessel_liveliness,
-            self.options.liveliness_outside_prefix,
-        )
-        .ok();
-        if let Some(st) = &settings {
+        if let Some(r) = self.scaling.first().or(self.capacity.first()) {
             notes.push(format!(
-                "Daemon settings: `config/twind.toml` defaults except `[diagnose] enabled = false` \
-                 (the live diagnose, seconds of CPU per vessel every few minutes on a blocking thread, \
-                 is off for this benchmark). Predictions at their defaults: a {} s forecast at {} s steps \
-                 every {} s of message time per vessel, computed on {} forecast thread(s) under `SCHED_IDLE` \
-                 (CPU time nothing else wants) that wait while the vessel tasks have not caught up (at most 1 s \
-                 per forecast), at most one in flight per vessel (on a busy machine they \
-                 come less often: the forecasts/s column); \
-                 state and fault on every fix; vessel queue depth {}; publishers `CongestionControl::Block`.",
-                st.publish.prediction_horizon_s,
-                st.publish.prediction_step_s,
-                st.publish.prediction_interval_s,
-                st.publish.forecast_threads,
-                st.vessels.queue_depth
-            ));
-            let publish = &st.publish;
-            notes.push(match (publish.vessel_liveliness, &publish.vessel_liveliness_key) {
-                (true, Some(key)) => format!(
-                    "Liveliness: one token per vessel at `{key}`, outside the data prefix \
-                     (`publish.vessel_liveliness_key`, `--liveliness-outside-prefix`), instead of the \
-                     contract's `asv/{{vessel}}/twin/alive`."
-                ),
-                (true, None) => "Liveliness: one token per vessel at `asv/{vessel}/twin/alive` (the contract; \
-                 `publish.vessel_liveliness = true`). With Zenoh 1.10 every token under `asv/` is a \
-                 node of every session's resource tree, which the routing of a message on an \
-                 undeclared key walks; the daemon, the generator and the subscriber declare the keys \
-                 they use, whose routes are then cached. `--no-vessel-liveliness` measures the daemon \
-                 without the tokens."
-                    .to_string(),
-                (false, _) => "Liveliness: no per-vessel tokens (`publish.vessel_liveliness = false`, \
-                 `--no-vessel-liveliness`): the contract's `asv/{vessel}/twin/alive` is not declared."
-                    .to_string(),
-            });
-        }
-        let any = self.scaling.first().or(self.capacity.first());
-        if let Some(r) = any {
-            notes.push(format!(
-                "Load: per vessel and period one shaft-speed message (`asv/<id>/actuators`, {:.0} B) then one \
-                 fix (`asv/<id>/gnss`, {:.0} B, with heading and hdop), the contract's JSON as `twin-replay` \
-                 encodes it (`replay: false`); vessels spread evenly over the period. The fleet: the \
-                 simulated Otter's steady turn at {:.2} m/s (radius {:.0} m, shafts {:.0}/{:.0} rpm), each \
-                 vessel on its own circle and phase, GNSS noise added. A fault payload is about {:.0} B.",
+                "Payloads: shaft speeds {:.0} B, fix {:.0} B, fault {:.0} B. Fleet: the simulated Otter's steady turn at {:.2} m/s (radius {:.0} m, shafts {:.0}/{:.0} rpm).",
                 r.actuators_bytes_mean,
                 r.gnss_bytes_mean,
+                self.scaling
+                    .iter()
+                    .find(|r| r.spec.path == Path::Daemon)
+                    .map_or(0.0, |r| r.received_bytes_mean),
                 r.circle_speed_mps,
                 r.circle_radius_m,
                 r.circle_rpm[0],
                 r.circle_rpm[1],
-                self.scaling
-                    .iter()
-                    .find(|r| r.spec.path == Path::Daemon)
-                    .map_or(0.0, |r| r.received_bytes_mean)
             ));
         }
-        notes.push(
-            "Zenoh: three peer sessions in one process (daemon listening, generator and subscriber \
-             connected to it; raw Zenoh: subscriber listening, generator connected), TCP on 127.0.0.1, \
-             multicast scouting and gossip off."
-                .into(),
-        );
-        notes.push(
-            "Latency: from the generator's stamp (taken just before encoding and putting the fix; the \
-             fix's `time` field is that stamp) to the receipt of the fault that fix produced (the \
-             fault echoes the fix's time) in the subscriber's callback. Lost: fixes stamped in the \
-             window whose fault had not arrived by the window's end plus the grace period (dropped or \
-             still queued). A p99 marked >= is over the delivered fixes only, more than 1 % being lost."
-                .into(),
-        );
-        notes.push(
-            "The load generator puts every vessel's messages through one session: from one thread \
-             on the daemon path (under a third of a core there; a second thread through the same \
-             session cost about 8 % of a core more in contention, CPU taken from the daemon), from \
-             one thread per core for raw Zenoh, each with its share of the fleet (one thread alone \
-             cannot load Zenoh to its limit) \
-             (a real fleet spreads them over as many processes, each with its own publishers), \
-             blocking when Zenoh's queues are full (`CongestionControl::Block`, as `twin-replay`). \
-             On the daemon's path the generator declares each vessel's keys to its session as key \
-             expressions (not as 2 N publishers, which in one session would cost O(N^2) to \
-             declare), and the subscriber the keys it receives on; raw Zenoh's keys are strings \
-             (no tokens there, so nothing per vessel for its routing to walk). \
-             Where \"sent\" is below \"planned\" the generator was held back (back-pressure, or \
-             its session busy taking in the daemon's declarations); the lag column says by how much \
-             from the window's start. Rates are what was actually sent and received. \
-             Warm-up: at least the time asked for, then until every vessel has been heard from \
-             and, paced, the generator is on its schedule and deliveries come back within 50 ms, \
-             for 2 s in a row (a whole fleet starting at once leaves a backlog to drain); at most \
-             12 times the time asked for."
-                .into(),
-        );
-        notes.push(
-            "CPU is the whole process: daemon, load generator, subscriber and every Zenoh session \
-             (the raw rows have no daemon). RSS per vessel = (RSS at the window's end - RSS with \
-             everything declared but no message sent) / vessels: the daemon's vessel tasks, twins and \
-             queues, and the Zenoh declarations they make in all three sessions."
-                .into(),
-        );
-        let mut groups: Vec<String> = Vec::new();
-        for r in self.scaling.iter().chain(&self.capacity) {
-            if r.spec.path == Path::Daemon
-                && (r.spec.vessels == HEADLINE_VESSELS || r.spec.rate_hz.is_none())
-            {
-                groups.push(format!("{}: {}", fleet_text(r), cpu_groups_text(r)));
-            }
-        }
-        for r in &self.capacity {
-            if r.spec.path == Path::Raw {
-                groups.push(format!(
-                    "raw Zenoh, {}: {}",
-                    fleet_text(r),
-                    cpu_groups_text(r)
-                ));
-            }
-        }
-        if !groups.is_empty() {
-            notes.push(format!(
-                "CPU by thread (% of one core, live threads): {}.",
-                groups.join("; ")
-            ));
-        }
+        notes.extend(self.cpu_by_thread_note());
         for r in self.scaling.iter().chain(&self.ramp).chain(&self.capacity) {
-            if r.warmup_capped {
-                notes.push(format!(
-                    "{} {}: the warm-up reached its cap of {:.1} s with {} of the {} vessels heard from \
-                     ({} by the end) and the generator {} behind its schedule; measured anyway.",
-                    path_text(r.spec.path),
-                    fleet_text(r),
-                    r.warmup_used_s,
-                    thousands(r.vessels_heard_at_start as u64),
-                    thousands(r.spec.vessels as u64),
-                    thousands(r.vessels_heard as u64),
-                    r.generator_lag_at_start_ms
-                        .map_or("-".into(), |l| format!("{l:.0} ms"))
-                ));
-            }
-            if r.unparsable > 0 {
-                notes.push(format!(
-                    "{} {}: {} messages the subscriber could not attribute{}.",
-                    path_text(r.spec.path),
-                    fleet_text(r),
-                    r.unparsable,
-                    r.unparsable_first
-                        .as_deref()
-                        .map_or(String::new(), |f| format!(" (the first: {f})"))
-                ));
-            }
+            notes.extend(point_notes(r));
         }
         let generator_bound: Vec<String> = self
             .scaling
@@ -999,24 +867,89 @@ impl DaemonReport {
             .collect();
         if !generator_bound.is_empty() {
             notes.push(format!(
-                "Runs that delivered in time all they sent but could not send their plan, the \
-                 generator's threads near a full core each: {}. There the generator is the \
-                 limit, and the path's maximum sustained rate above is a lower bound (>=).",
+                "Generator-bound (all sent was delivered in time, the plan not sent): {}; the path's maximum sustained rate is a lower bound (>=).",
                 generator_bound.join("; ")
             ));
         }
-        notes.push(
-            "Memory per vessel of runs that were not sustained includes the messages queued in the \
-             daemon and in Zenoh at the window's end."
-                .into(),
-        );
-        notes.push(
-            "Every point ran in a fresh child process (`twin-bench daemon-point`). Speed figures are \
-             never asserted in tests."
-                .into(),
-        );
         notes
     }
+
+    /// CPU by thread group of the headline and flat-out points.
+    fn cpu_by_thread_note(&self) -> Option<String> {
+        let daemon = self.scaling.iter().chain(&self.capacity).filter(|r| {
+            r.spec.path == Path::Daemon
+                && (r.spec.vessels == HEADLINE_VESSELS || r.spec.rate_hz.is_none())
+        });
+        let raw = self.capacity.iter().filter(|r| r.spec.path == Path::Raw);
+        let groups: Vec<String> = daemon
+            .map(|r| format!("{}: {}", fleet_text(r), cpu_groups_text(r)))
+            .chain(raw.map(|r| format!("raw Zenoh, {}: {}", fleet_text(r), cpu_groups_text(r))))
+            .collect();
+        (!groups.is_empty()).then(|| {
+            format!(
+                "CPU by thread (% of one core, live threads): {}.",
+                groups.join("; ")
+            )
+        })
+    }
+}
+
+/// The flag a run of `twin-bench daemon` had for the liveliness tokens.
+fn liveliness_flag(o: &DaemonOptions) -> &'static str {
+    if !o.vessel_liveliness {
+        " --no-vessel-liveliness"
+    } else if o.liveliness_outside_prefix {
+        " --liveliness-outside-prefix"
+    } else {
+        ""
+    }
+}
+
+fn verdict(ok: bool) -> &'static str {
+    if ok { "met" } else { "missed" }
+}
+
+fn sustained_text(r: &PointResult) -> &'static str {
+    if sustained(r) {
+        "yes"
+    } else if limited_by_generator(r) {
+        "no: generator-bound"
+    } else if !on_schedule(r) {
+        "no: behind schedule"
+    } else {
+        "no"
+    }
+}
+
+/// A point's own notes: a warm-up that reached its cap, messages the
+/// subscriber could not attribute.
+fn point_notes(r: &PointResult) -> Vec<String> {
+    let mut notes = Vec::new();
+    if r.warmup_capped {
+        notes.push(format!(
+            "{} {}: the warm-up reached its cap of {:.1} s with {} of the {} vessels heard from ({} by the end) and the generator {} behind its schedule; measured anyway.",
+            path_text(r.spec.path),
+            fleet_text(r),
+            r.warmup_used_s,
+            thousands(r.vessels_heard_at_start as u64),
+            thousands(r.spec.vessels as u64),
+            thousands(r.vessels_heard as u64),
+            r.generator_lag_at_start_ms
+                .map_or("-".into(), |l| format!("{l:.0} ms"))
+        ));
+    }
+    if r.unparsable > 0 {
+        notes.push(format!(
+            "{} {}: {} messages the subscriber could not attribute{} (docs/known-issues.md).",
+            path_text(r.spec.path),
+            fleet_text(r),
+            r.unparsable,
+            r.unparsable_first
+                .as_deref()
+                .map_or(String::new(), |f| format!(" (the first: {f})"))
+        ));
+    }
+    notes
 }
 
 fn warmup_text(r: &PointResult) -> String {

@@ -15,7 +15,7 @@ use crate::trial::{self, Timing, TrialSpec};
 /// The tolerance on theta and x (and, relatively, on NIS).
 pub const DEFAULT_TOLERANCE: f64 = 1e-9;
 
-/// The speed target of PRODUCT.md: Rust at least this many times faster.
+/// The speed target (docs/performance.md): Rust at least this many times faster.
 pub const TARGET_RATIO: f64 = 100.0;
 
 /// How to run the comparison.

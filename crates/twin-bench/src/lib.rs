@@ -1,5 +1,5 @@
 //! `twin-bench`: side-by-side performance measurements of the USV twin, as
-//! PRODUCT.md's "Speed" section asks for them (medians on a shared 2-core
+//! the project's speed targets ask for them (docs/performance.md) (medians on a shared 2-core
 //! machine, printed beside its load average; never asserted in tests).
 //!
 //! # Layout

@@ -13,7 +13,7 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 use twin_bench::core::CoreOptions;
 use twin_bench::daemon::DaemonOptions;
-use twin_bench::daemon::load::{self, Ending, PointSpec};
+use twin_bench::daemon::load::{self, PointSpec};
 use twin_bench::estimator::{self, NumpyOptions};
 use twin_bench::numpy;
 use twin_bench::trial::{Adaptation, TrialSpec};
@@ -32,7 +32,7 @@ enum Bench {
     /// NumPy (bench/numpy_aekf.py): ns per step, the ratio, and the largest
     /// difference of the estimates. Exits non-zero if they disagree.
     Numpy(NumpyArgs),
-    /// The estimator and the offline path in one table with PRODUCT.md's
+    /// The estimator and the offline path in one table with the project's
     /// targets: the seed and extended AEKF steps, NumPy and the ratio, the
     /// whole twin per fix, the forecast, a 120 s trial, parsing per format
     /// (MB/s) and a 4-hour log analysed offline.
@@ -41,7 +41,7 @@ enum Bench {
     /// vessels x R Hz of GNSS fixes and shaft speeds; throughput, p50/p99/max
     /// latency GNSS publish -> fault receive, CPU, RSS and memory per vessel;
     /// 10 to 10,000 vessels; each path's maximum sustained rate and their
-    /// ratio. One table with PRODUCT.md's targets.
+    /// ratio. One table with the project's targets.
     Daemon(DaemonArgs),
     /// One point of `daemon`, run in a child process; prints one JSON line.
     #[command(hide = true)]
@@ -154,20 +154,19 @@ fn run_daemon_point(args: DaemonPointArgs) -> anyhow::Result<ExitCode> {
         vessel_liveliness: !args.no_vessel_liveliness,
         liveliness_outside_prefix: args.liveliness_outside_prefix,
     };
-    // A watchdog: a point that hangs must not hang the whole run.
-    let limit = spec.warmup_s * load::WARMUP_CAP + spec.window_s + spec.grace_s + 90.0;
+    // A watchdog: a point that hangs must not hang the whole run. Its
+    // shutdown is bounded too (load::DRAIN_LIMIT and the others).
+    let shutdown_s =
+        (load::GENERATOR_STOP_LIMIT + load::DRAIN_LIMIT + 4 * load::CLOSE_LIMIT).as_secs_f64();
+    let limit = spec.warmup_s * load::WARMUP_CAP + spec.window_s + spec.grace_s + shutdown_s + 90.0;
     std::thread::spawn(move || {
         std::thread::sleep(std::time::Duration::from_secs_f64(limit));
         eprintln!("error: the point did not finish within {limit:.0} s");
         std::process::exit(3);
     });
-    let result = load::measure(&spec, Ending::Abandon)?;
+    let result = load::measure(&spec)?;
     println!("{}", twin_bench::daemon::point_line(&result)?);
-    use std::io::Write as _;
-    std::io::stdout().flush()?;
-    // The daemon, its sessions and its runtime were left running (a
-    // saturated daemon would take long to drain): leave now.
-    std::process::exit(0);
+    Ok(ExitCode::SUCCESS)
 }
 
 #[derive(Debug, Args)]

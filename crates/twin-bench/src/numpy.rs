@@ -12,7 +12,7 @@ use twin_core::geodesy::wrap_pi;
 use crate::trial::Estimates;
 
 /// The one-line setup printed wherever NumPy is missing.
-pub const INSTALL_HINT: &str = "python3 -m pip install -r bench/requirements.txt";
+pub const INSTALL_HINT: &str = "python3 -m pip install -r requirements.txt";
 
 /// Exit status of `numpy_aekf.py` when NumPy cannot be imported.
 const EXIT_NO_NUMPY: i32 = 3;

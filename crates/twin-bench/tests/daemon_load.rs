@@ -5,7 +5,7 @@
 //! latency must be positive and finite. No figure of speed is asserted here
 //! (ARCHITECTURE.md: speed figures live in benchmarks, never in tests).
 
-use twin_bench::daemon::load::{Ending, Path, PointResult, PointSpec, measure};
+use twin_bench::daemon::load::{Path, PointResult, PointSpec, measure};
 
 fn spec(path: Path) -> PointSpec {
     PointSpec {
@@ -55,7 +55,7 @@ fn check_common(r: &PointResult) {
 
 #[test]
 fn a_small_fleet_through_the_daemon_comes_back_whole() {
-    let r = measure(&spec(Path::Daemon), Ending::Graceful).unwrap();
+    let r = measure(&spec(Path::Daemon)).unwrap();
     check_common(&r);
     assert_eq!(r.repeats, 0, "no stale republication within the window");
     let daemon = r.daemon.as_ref().expect("the daemon's counters");
@@ -78,7 +78,7 @@ fn a_small_fleet_through_the_daemon_comes_back_whole() {
 
 #[test]
 fn a_small_fleet_straight_through_zenoh_comes_back_whole() {
-    let r = measure(&spec(Path::Raw), Ending::Graceful).unwrap();
+    let r = measure(&spec(Path::Raw)).unwrap();
     check_common(&r);
     assert!(r.daemon.is_none());
     assert!(r.forecasts_per_s.is_none(), "no daemon, no forecasts");

@@ -10,23 +10,17 @@
 //!   [`plots`] (SVG figures drawn with [`svg`]).
 //! - [`diagnose`]: `twin diagnose`: what the model gets wrong on a log, the
 //!   cause, the gain on held-out data (text, JSON, SVG).
-//! - [`real_logs`]: `twin report real-logs`: analyze over the real logs, as a
-//!   markdown table.
-//! - [`diagnose_real`]: `twin report diagnose-real`: diagnose over the real
-//!   logs, as markdown, with the instrument's own current where there is one.
 //! - [`demo`]: the bundled demo trial (`data/demo/`) and how it is made.
-//! - [`trials`]: the seed's sea-trial matrix re-run in the simulator with
-//!   known truth: the seed's method beside the extended twin
-//!   (`twin report trials`).
+//!
+//! The tables of the documentation (the sea-trial matrix, the real logs)
+//! are made by `cargo xtask`, which uses this library; the `twin` binary
+//! carries only what its users run.
 
 pub mod analyze;
 pub mod demo;
 pub mod diagnose;
-pub mod diagnose_real;
 pub mod plots;
 pub mod quality;
-pub mod real_logs;
 pub mod simulate;
 pub mod svg;
-pub mod trials;
 pub mod truth;

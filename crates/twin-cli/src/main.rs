@@ -11,7 +11,7 @@ use clap::{Parser, Subcommand};
 use twin_cli::analyze::{AnalyzeOptions, analyze_path, load_truth, parse_source};
 use twin_cli::simulate::{OutputFormat, SimulateRequest, simulate_to_files};
 
-/// The USV twin, offline: simulate trials, analyse logs, report.
+/// The USV twin, offline: simulate trials, analyse and diagnose logs.
 #[derive(Debug, Parser)]
 #[command(name = "twin", version, about)]
 struct Cli {
@@ -69,35 +69,6 @@ enum Command {
         /// GNSS position source: best, an NMEA 2000 address, or an NMEA 0183 talker.
         #[arg(long, default_value = "best")]
         source: String,
-    },
-    /// Reports (markdown tables for the README).
-    Report {
-        #[command(subcommand)]
-        what: Report,
-    },
-}
-
-#[derive(Debug, Subcommand)]
-enum Report {
-    /// The seed's sea-trial matrix re-run in the simulator: the seed's
-    /// published figures, the seed's method and the extended twin (markdown).
-    Trials {
-        /// Noise seeds per cell.
-        #[arg(long, default_value_t = 3)]
-        seeds: u64,
-    },
-    /// `twin analyze` over every real log of a directory (markdown table).
-    RealLogs {
-        /// The directory of logs.
-        #[arg(long, default_value = twin_cli::real_logs::DEFAULT_DIR)]
-        dir: PathBuf,
-    },
-    /// `twin diagnose` over every real log of a directory (markdown), with
-    /// the instrument's own current beside the twin's where a log has it.
-    DiagnoseReal {
-        /// The directory of logs.
-        #[arg(long, default_value = twin_cli::real_logs::DEFAULT_DIR)]
-        dir: PathBuf,
     },
 }
 
@@ -230,25 +201,6 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     eprintln!("wrote {}", p.display());
                 }
             }
-        }
-        Command::Report {
-            what: Report::DiagnoseReal { dir },
-        } => {
-            let logs = twin_cli::diagnose_real::diagnose_dir(&dir, &diagnose_config())
-                .with_context(|| format!("diagnosing the logs of {}", dir.display()))?;
-            print!("{}", twin_cli::diagnose_real::markdown(&logs));
-        }
-        Command::Report {
-            what: Report::Trials { seeds },
-        } => {
-            print!("{}", twin_cli::trials::markdown_report(seeds));
-        }
-        Command::Report {
-            what: Report::RealLogs { dir },
-        } => {
-            let logs = twin_cli::real_logs::analyze_dir(&dir, &AnalyzeOptions::default())
-                .with_context(|| format!("analysing the logs in {}", dir.display()))?;
-            print!("{}", twin_cli::real_logs::markdown_table(&logs));
         }
     }
     Ok(())

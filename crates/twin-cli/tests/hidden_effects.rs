@@ -1,4 +1,4 @@
-//! Hidden-effect tests of `twin diagnose` (the diagnose issue): the
+//! Hidden-effect tests of `twin diagnose`: the
 //! simulator hides an effect chosen by a seeded random draw in a trial (a
 //! current of random speed and direction, a heading-sensor offset, a SOG
 //! scale, GNSS latency, a propeller loss, or nothing), writes the log as the

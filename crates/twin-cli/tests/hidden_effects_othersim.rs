@@ -1,5 +1,5 @@
 //! Hidden-effect tests of `twin diagnose` on logs from a simulator other than
-//! the project's own (PRODUCT.md, "Hidden effects"): `tests/othersim/otter6dof.py`,
+//! the project's own (docs/accuracy.md, "Hidden effects"): `tests/othersim/otter6dof.py`,
 //! an independent 6-DOF Otter written in Python from Fossen's published
 //! model (its module doc says what it is and how it differs from `twin-sim`).
 //!
@@ -25,9 +25,9 @@
 //! A second test hides a current and a propeller loss together and requires
 //! both.
 //!
-//! Needs `python3` on the PATH with NumPy (`python3 -m pip install -r
-//! bench/requirements.txt`). Without them the tests print why and pass,
-//! unless `TWIN_BENCH_REQUIRE_NUMPY=1` is set (CI sets it), when they fail.
+//! Needs `python3` on the PATH with NumPy; without them the tests fail with
+//! the command that installs them (`python3 -m pip install -r
+//! requirements.txt`, part of the README's test command).
 
 #[path = "common/hidden.rs"]
 mod hidden;
@@ -48,9 +48,6 @@ const SIMULATOR: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/../../tests/othersim/otter6dof.py"
 );
-
-/// Set to 1 (CI) to fail rather than skip without Python and NumPy.
-const REQUIRE_NUMPY_VAR: &str = "TWIN_BENCH_REQUIRE_NUMPY";
 
 /// Draws in the main test.
 const DRAWS: usize = 36;
@@ -146,36 +143,25 @@ fn simulator_args(h: Hidden) -> Vec<String> {
     }
 }
 
-/// Why Python with NumPy cannot run, if it cannot.
-fn python_unavailable() -> Option<String> {
+/// Fails the test, with the command that installs them, unless `python3`
+/// runs and imports NumPy: a test that needs a peer never passes without it.
+fn require_numpy() {
+    let install = "install it with: python3 -m pip install -r requirements.txt";
     match Command::new("python3")
         .args(["-c", "import numpy"])
         .output()
     {
-        Err(e) => Some(format!("python3 cannot be run: {e}")),
-        Ok(out) if !out.status.success() => Some(format!(
-            "python3 has no NumPy (python3 -m pip install -r bench/requirements.txt): {}",
+        Err(e) => panic!("python3 cannot be run ({e}): install Python 3, then {install}"),
+        Ok(out) => assert!(
+            out.status.success(),
+            "python3 has no NumPy ({}); {install}",
             String::from_utf8_lossy(&out.stderr)
                 .lines()
                 .last()
                 .unwrap_or("")
                 .trim()
-        )),
-        Ok(_) => None,
+        ),
     }
-}
-
-/// True when the tests can run; prints why not, or fails when required.
-fn python_ready() -> bool {
-    let Some(reason) = python_unavailable() else {
-        return true;
-    };
-    assert!(
-        std::env::var(REQUIRE_NUMPY_VAR).as_deref() != Ok("1"),
-        "{REQUIRE_NUMPY_VAR}=1 but {reason}"
-    );
-    println!("skipped: {reason}");
-    false
 }
 
 /// A fresh directory for this test's logs.
@@ -270,9 +256,7 @@ struct Outcome {
 
 #[test]
 fn hidden_effects_are_named_on_logs_of_an_independent_simulator() {
-    if !python_ready() {
-        return;
-    }
+    require_numpy();
     let dir = work_dir("draws");
     let mut rng = StdRng::seed_from_u64(20250314);
     let draws = draws(&mut rng);
@@ -347,9 +331,7 @@ fn hidden_effects_are_named_on_logs_of_an_independent_simulator() {
 
 #[test]
 fn a_current_and_a_propeller_loss_are_both_named_on_the_other_simulator() {
-    if !python_ready() {
-        return;
-    }
+    require_numpy();
     let dir = work_dir("combined");
     let log = simulate(
         &[

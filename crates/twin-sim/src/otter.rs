@@ -3,7 +3,7 @@
 //!
 //! Written from the equations of Fossen's Otter model (MSS `otter.m`,
 //! Fossen 2021, *Handbook of Marine Craft Hydrodynamics and Motion Control*)
-//! with the numbers of MODEL.md section 6 (payload 25 kg). It shares no code
+//! with the numbers of docs/model.md section 6 (payload 25 kg). It shares no code
 //! with the estimator's models in `twin-core`: this is the truth they are held
 //! against.
 //!
@@ -73,7 +73,7 @@ pub(crate) type StateVector = SVector<f64, 8>;
 /// Density of sea water, kg/m^3 (`otter.m`).
 pub const SEA_WATER_DENSITY_KGPM3: f64 = 1025.0;
 
-/// The Otter's parameters. [`Default`] gives MODEL.md section 6 (hull 55 kg,
+/// The Otter's parameters. [`Default`] gives docs/model.md section 6 (hull 55 kg,
 /// payload 25 kg at [0.05, 0, -0.35] m).
 #[derive(Debug, Clone, PartialEq)]
 pub struct OtterParams {
@@ -510,7 +510,7 @@ mod tests {
     #[test]
     fn bollard_thrust_matches_the_otter_data() {
         let p = OtterParams::default();
-        // MODEL.md: 119.7 N ahead and 66.7 N astern per propeller.
+        // docs/model.md section 6: 119.7 N ahead and 66.7 N astern per propeller.
         assert!(
             (p.max_thrust_n() - 119.7).abs() < 0.5,
             "{}",

@@ -538,7 +538,7 @@ impl DisturbanceSpec {
     /// i.e. the intensity of the continuous white noise `w` driving a
     /// velocity state, `E[w(t) w(s)] = q delta(t - s)`: over a filter step
     /// `dt` it adds about `q dt` to the velocity's variance. `m` is the
-    /// diagonal of the mass matrix: for the Otter of MODEL.md section 6,
+    /// diagonal of the mass matrix: for the Otter of docs/model.md section 6,
     /// `[85.5, 162.5, 42.65]` ([`Self::otter_acceleration_density`]). This
     /// neglects the sway-yaw coupling `M23 = 12.25 kg m`, which in the
     /// simulator also turns the sway force into yaw acceleration; see
@@ -550,7 +550,7 @@ impl DisturbanceSpec {
         sigma_a.map(|s| 2.0 * s * s * self.correlation_s)
     }
 
-    /// [`Self::acceleration_density`] with the simulator's Otter (MODEL.md
+    /// [`Self::acceleration_density`] with the simulator's Otter (docs/model.md
     /// section 6, mass matrix diagonal `[85.5, 162.5, 42.65]`).
     pub fn otter_acceleration_density(&self) -> [f64; 3] {
         self.acceleration_density(OtterParams::default().mass_matrix_diagonal())
@@ -988,8 +988,52 @@ impl Scenario {
 
         let initial = self.validate_initial(&drive)?;
 
+        let control = self.validate_control()?;
+        let losses = self.validate_losses()?;
+        let current = self.validate_current()?;
+        let vessel = match &self.vessel {
+            None => OtterParams::default(),
+            Some(v) => OtterParams::default().scaled(&v.validated()?),
+        };
+        let wind = self.validate_wind(vessel.length_m)?;
+
+        let disturbance = match &self.disturbance {
+            None => None,
+            Some(d) => Self::validate_disturbance(d)?,
+        };
+
+        let (gnss, heading, propellers, yaw_rate) = self.validate_sensors()?;
+
+        Ok(Plan {
+            name: self.name.clone(),
+            duration_s,
+            seed: self.seed,
+            start_unix_s,
+            step_s,
+            frame,
+            drive,
+            initial,
+            control_period_s: control.period_s,
+            lookahead_m: control.lookahead_m,
+            acceptance_radius_m: control.acceptance_radius_m,
+            ilos_gain: control.ilos_gain,
+            tuning: control.tuning,
+            losses,
+            current,
+            wind,
+            disturbance,
+            gnss,
+            heading,
+            propellers,
+            yaw_rate,
+            vessel,
+        })
+    }
+
+    /// The autopilot's settings, validated.
+    fn validate_control(&self) -> Result<ControlSettings, ScenarioError> {
         let c = &self.control;
-        let control_period_s = period_of("control.rate_hz", c.rate_hz)?;
+        let period_s = period_of("control.rate_hz", c.rate_hz)?;
         let lookahead_m = positive("control.lookahead_m", c.lookahead_m)?;
         let acceptance_radius_m = positive("control.acceptance_radius_m", c.acceptance_radius_m)?;
         let ilos_gain = non_negative("control.ilos_gain", c.ilos_gain)?;
@@ -1014,7 +1058,17 @@ impl Scenario {
                 c.speed_bandwidth_radps,
             )?,
         };
+        Ok(ControlSettings {
+            period_s,
+            lookahead_m,
+            acceptance_radius_m,
+            ilos_gain,
+            tuning,
+        })
+    }
 
+    /// Each propeller's loss and its onset, port then starboard.
+    fn validate_losses(&self) -> Result<[LossStep; 2], ScenarioError> {
         let mut losses = [LossStep {
             loss: 0.0,
             onset_s: 0.0,
@@ -1039,82 +1093,49 @@ impl Scenario {
                 onset_s,
             };
         }
+        Ok(losses)
+    }
 
-        let current = match &self.current {
-            None => CurrentModel::none(),
-            Some(cur) => {
-                let speed_mps = non_negative("current.speed_mps", cur.speed_mps)?;
-                let amplitude =
-                    non_negative("current.speed_amplitude_mps", cur.speed_amplitude_mps)?;
-                if amplitude > speed_mps {
-                    return Err(invalid(
-                        "current.speed_amplitude_mps",
-                        format!(
-                            "{amplitude} exceeds current.speed_mps {speed_mps}: the speed would turn negative"
-                        ),
-                    ));
-                }
-                CurrentModel {
-                    speed_mps,
-                    toward_rad: compass_deg_to_rad(finite("current.toward_deg", cur.toward_deg)?),
-                    rotation_radps: finite("current.rotation_deg_s", cur.rotation_deg_s)?
-                        .to_radians(),
-                    speed_amplitude_mps: amplitude,
-                    speed_period_s: positive("current.speed_period_s", cur.speed_period_s)?,
-                }
-            }
+    /// The current, none if not given.
+    fn validate_current(&self) -> Result<CurrentModel, ScenarioError> {
+        let Some(cur) = &self.current else {
+            return Ok(CurrentModel::none());
         };
-
-        let vessel = match &self.vessel {
-            None => OtterParams::default(),
-            Some(v) => OtterParams::default().scaled(&v.validated()?),
-        };
-        let wind = match &self.wind {
-            None => None,
-            Some(w) => Some(WindModel {
-                speed_mps: non_negative("wind.speed_mps", w.speed_mps)?,
-                from_rad: compass_deg_to_rad(finite("wind.from_deg", w.from_deg)?),
-                frontal_area_m2: non_negative("wind.frontal_area_m2", w.frontal_area_m2)?,
-                lateral_area_m2: non_negative("wind.lateral_area_m2", w.lateral_area_m2)?,
-                length_m: vessel.length_m,
-                c_x: finite("wind.c_x", w.c_x)?,
-                c_y: finite("wind.c_y", w.c_y)?,
-                c_n: finite("wind.c_n", w.c_n)?,
-                air_density_kgpm3: positive("wind.air_density_kgpm3", w.air_density_kgpm3)?,
-            }),
-        };
-
-        let disturbance = match &self.disturbance {
-            None => None,
-            Some(d) => Self::validate_disturbance(d)?,
-        };
-
-        let (gnss, heading, propellers, yaw_rate) = self.validate_sensors()?;
-
-        Ok(Plan {
-            name: self.name.clone(),
-            duration_s,
-            seed: self.seed,
-            start_unix_s,
-            step_s,
-            frame,
-            drive,
-            initial,
-            control_period_s,
-            lookahead_m,
-            acceptance_radius_m,
-            ilos_gain,
-            tuning,
-            losses,
-            current,
-            wind,
-            disturbance,
-            gnss,
-            heading,
-            propellers,
-            yaw_rate,
-            vessel,
+        let speed_mps = non_negative("current.speed_mps", cur.speed_mps)?;
+        let amplitude = non_negative("current.speed_amplitude_mps", cur.speed_amplitude_mps)?;
+        if amplitude > speed_mps {
+            return Err(invalid(
+                "current.speed_amplitude_mps",
+                format!(
+                    "{amplitude} exceeds current.speed_mps {speed_mps}: the speed would turn negative"
+                ),
+            ));
+        }
+        Ok(CurrentModel {
+            speed_mps,
+            toward_rad: compass_deg_to_rad(finite("current.toward_deg", cur.toward_deg)?),
+            rotation_radps: finite("current.rotation_deg_s", cur.rotation_deg_s)?.to_radians(),
+            speed_amplitude_mps: amplitude,
+            speed_period_s: positive("current.speed_period_s", cur.speed_period_s)?,
         })
+    }
+
+    /// The wind, none if not given; `length_m` is the hull's.
+    fn validate_wind(&self, length_m: f64) -> Result<Option<WindModel>, ScenarioError> {
+        let Some(w) = &self.wind else {
+            return Ok(None);
+        };
+        Ok(Some(WindModel {
+            speed_mps: non_negative("wind.speed_mps", w.speed_mps)?,
+            from_rad: compass_deg_to_rad(finite("wind.from_deg", w.from_deg)?),
+            frontal_area_m2: non_negative("wind.frontal_area_m2", w.frontal_area_m2)?,
+            lateral_area_m2: non_negative("wind.lateral_area_m2", w.lateral_area_m2)?,
+            length_m,
+            c_x: finite("wind.c_x", w.c_x)?,
+            c_y: finite("wind.c_y", w.c_y)?,
+            c_n: finite("wind.c_n", w.c_n)?,
+            air_density_kgpm3: positive("wind.air_density_kgpm3", w.air_density_kgpm3)?,
+        }))
     }
 
     /// The disturbance's settings, `None` if every sigma is zero.
@@ -1337,6 +1358,15 @@ impl VesselSpec {
             thrust: positive("vessel.thrust_scale", self.thrust_scale)?,
         })
     }
+}
+
+/// The autopilot's settings of a plan, validated.
+struct ControlSettings {
+    period_s: f64,
+    lookahead_m: f64,
+    acceptance_radius_m: f64,
+    ilos_gain: f64,
+    tuning: AutopilotTuning,
 }
 
 #[cfg(test)]

@@ -188,38 +188,124 @@ struct Autopilot {
     saturated: bool,
 }
 
-/// Runs a validated plan.
+/// Runs a validated plan: at each instant something happens (a control
+/// tick, a sample, a disturbance update, a loss onset or a manual command),
+/// control, record, then integrate to the next such instant.
 pub fn run_plan(plan: &Plan) -> SimRun {
-    let model = OtterModel::new(plan.vessel.clone());
-    let params = &model.params;
+    let mut run = Run::new(plan);
+    let mut t = 0.0_f64;
+    loop {
+        let body = body_motion(&run.x);
+        let disturbance_force = run.disturbance_at(t);
+        run.control(t, &body);
+        run.record(t, &body, disturbance_force);
+        if t >= plan.duration_s - SAME_INSTANT_S {
+            break;
+        }
+        let t_next = run.next_instant(t);
+        run.integrate(t, t_next, disturbance_force);
+        t = t_next;
+    }
+    run.finish()
+}
 
-    // Initial state: at speed in still water, shafts turning to hold it.
-    let [north0, east0, psi0, speed0] = plan.initial;
-    let hold_thrust_n = -params.x_u_n_per_mps * speed0 / 2.0;
-    let n0 = params.shaft_speed_for_thrust_radps(hold_thrust_n);
-    let mut x = StateVector::from_column_slice(&[north0, east0, psi0, speed0, 0.0, 0.0, n0, n0]);
-    let mut n_cmd = [n0, n0];
+/// A run in progress: the vessel's state, its controller, the clocks of
+/// everything periodic, and what has been recorded.
+struct Run<'a> {
+    plan: &'a Plan,
+    model: OtterModel,
+    x: StateVector,
+    n_cmd: [f64; 2],
+    autopilot: Option<Autopilot>,
+    /// Loss onsets and manual command changes, in order.
+    breakpoints: Vec<f64>,
+    control_clock: Ticker,
+    truth_clock: Ticker,
+    gnss: Option<(GnssSensor, Ticker)>,
+    heading: Option<(HeadingSensor, Ticker)>,
+    props: Option<(PropellerSensor, Ticker)>,
+    gyro: Option<(YawRateSensor, Ticker)>,
+    disturbance: Option<(DisturbanceProcess, Ticker)>,
+    events: Vec<SensorEvent>,
+    truth: Vec<TruthSample>,
+    passes: Vec<WaypointPass>,
+}
 
-    let mut autopilot = match &plan.drive {
-        Drive::Waypoints {
-            waypoints,
-            speed_mps,
-        } => Some(Autopilot {
-            los: LineOfSight::new(
-                waypoints.clone(),
-                plan.lookahead_m,
-                plan.acceptance_radius_m,
-                plan.ilos_gain,
-            ),
-            heading: HeadingAutopilot::new(plan.tuning, psi0, 0.0),
-            speed: SpeedController::new(plan.tuning.speed_bandwidth_radps),
-            speed_mps: *speed_mps,
-            saturated: false,
-        }),
-        Drive::Manual(_) => None,
-    };
-    let manual_at = |t_s: f64| -> [f64; 2] {
-        match &plan.drive {
+impl<'a> Run<'a> {
+    fn new(plan: &'a Plan) -> Self {
+        let model = OtterModel::new(plan.vessel.clone());
+        // Initial state: at speed in still water, shafts turning to hold it.
+        let [north0, east0, psi0, speed0] = plan.initial;
+        let hold_thrust_n = -model.params.x_u_n_per_mps * speed0 / 2.0;
+        let n0 = model.params.shaft_speed_for_thrust_radps(hold_thrust_n);
+        let x = StateVector::from_column_slice(&[north0, east0, psi0, speed0, 0.0, 0.0, n0, n0]);
+        let autopilot = match &plan.drive {
+            Drive::Waypoints {
+                waypoints,
+                speed_mps,
+            } => Some(Autopilot {
+                los: LineOfSight::new(
+                    waypoints.clone(),
+                    plan.lookahead_m,
+                    plan.acceptance_radius_m,
+                    plan.ilos_gain,
+                ),
+                heading: HeadingAutopilot::new(plan.tuning, psi0, 0.0),
+                speed: SpeedController::new(plan.tuning.speed_bandwidth_radps),
+                speed_mps: *speed_mps,
+                saturated: false,
+            }),
+            Drive::Manual(_) => None,
+        };
+        let mut breakpoints: Vec<f64> = plan.losses.iter().map(|l| l.onset_s).collect();
+        if let Drive::Manual(cmds) = &plan.drive {
+            breakpoints.extend(cmds.iter().map(|(t, _)| *t));
+        }
+        breakpoints.retain(|t| *t > 0.0 && *t < plan.duration_s);
+        breakpoints.sort_by(f64::total_cmp);
+        let truth_period = plan
+            .gnss
+            .map_or(1.0 / DEFAULT_TRUTH_RATE_HZ, |g| g.period_s);
+        Self {
+            plan,
+            model,
+            x,
+            n_cmd: [n0, n0],
+            autopilot,
+            breakpoints,
+            control_clock: Ticker::new(plan.control_period_s),
+            truth_clock: Ticker::new(truth_period),
+            gnss: plan
+                .gnss
+                .map(|s| (GnssSensor::new(s, plan.seed), Ticker::new(s.period_s))),
+            heading: plan
+                .heading
+                .map(|s| (HeadingSensor::new(s, plan.seed), Ticker::new(s.period_s))),
+            props: plan
+                .propellers
+                .map(|s| (PropellerSensor::new(s, plan.seed), Ticker::new(s.period_s))),
+            gyro: plan
+                .yaw_rate
+                .map(|s| (YawRateSensor::new(s, plan.seed), Ticker::new(s.period_s))),
+            disturbance: plan.disturbance.map(|s| {
+                (
+                    DisturbanceProcess::new(s, plan.seed),
+                    Ticker::new(s.update_period_s()),
+                )
+            }),
+            events: Vec::new(),
+            truth: Vec::new(),
+            passes: Vec::new(),
+        }
+    }
+
+    fn loss_at(&self, t_s: f64) -> [f64; 2] {
+        [self.plan.losses[0].at(t_s), self.plan.losses[1].at(t_s)]
+    }
+
+    /// The manual shaft-speed command in force at `t_s`.
+    fn manual_at(&self, t_s: f64) -> [f64; 2] {
+        match &self.plan.drive {
             Drive::Manual(cmds) => cmds
                 .iter()
                 .rev()
@@ -227,67 +313,32 @@ pub fn run_plan(plan: &Plan) -> SimRun {
                 .map_or([0.0, 0.0], |(_, n)| *n),
             Drive::Waypoints { .. } => [0.0, 0.0],
         }
-    };
-
-    let mut breakpoints: Vec<f64> = plan.losses.iter().map(|l| l.onset_s).collect();
-    if let Drive::Manual(cmds) = &plan.drive {
-        breakpoints.extend(cmds.iter().map(|(t, _)| *t));
     }
-    breakpoints.retain(|t| *t > 0.0 && *t < plan.duration_s);
-    breakpoints.sort_by(f64::total_cmp);
 
-    let mut control_clock = Ticker::new(plan.control_period_s);
-    let truth_period = plan
-        .gnss
-        .map_or(1.0 / DEFAULT_TRUTH_RATE_HZ, |g| g.period_s);
-    let mut truth_clock = Ticker::new(truth_period);
-    let mut gnss = plan
-        .gnss
-        .map(|s| (GnssSensor::new(s, plan.seed), Ticker::new(s.period_s)));
-    let mut heading = plan
-        .heading
-        .map(|s| (HeadingSensor::new(s, plan.seed), Ticker::new(s.period_s)));
-    let mut props = plan
-        .propellers
-        .map(|s| (PropellerSensor::new(s, plan.seed), Ticker::new(s.period_s)));
-    let mut gyro = plan
-        .yaw_rate
-        .map(|s| (YawRateSensor::new(s, plan.seed), Ticker::new(s.period_s)));
-    let mut disturbance = plan.disturbance.map(|s| {
-        (
-            DisturbanceProcess::new(s, plan.seed),
-            Ticker::new(s.update_period_s()),
-        )
-    });
-
-    let mut events = Vec::new();
-    let mut truth = Vec::new();
-    let mut passes = Vec::new();
-    let start = plan.start_unix_s;
-    let loss_at = |t_s: f64| [plan.losses[0].at(t_s), plan.losses[1].at(t_s)];
-
-    let mut t = 0.0_f64;
-    loop {
-        let body = body_motion(&x);
-
-        if let Some((process, clock)) = disturbance.as_mut()
+    /// The random disturbance's force at `t`, advanced when due.
+    fn disturbance_at(&mut self, t: f64) -> [f64; 3] {
+        if let Some((process, clock)) = self.disturbance.as_mut()
             && clock.fire(t)
         {
             process.advance_to(t);
         }
-        let disturbance_force = disturbance.as_ref().map_or([0.0; 3], |(p, _)| p.value());
+        self.disturbance
+            .as_ref()
+            .map_or([0.0; 3], |(p, _)| p.value())
+    }
 
-        if control_clock.fire(t)
-            && let Some(ap) = autopilot.as_mut()
+    /// The shaft-speed commands at `t`: the autopilot at its control ticks,
+    /// or the manual command in force.
+    fn control(&mut self, t: f64, body: &BodyMotion) {
+        let plan = self.plan;
+        let params = &self.model.params;
+        if self.control_clock.fire(t)
+            && let Some(ap) = self.autopilot.as_mut()
         {
-            let los = ap.los.update(
-                t,
-                body.north_m,
-                body.east_m,
-                plan.control_period_s,
-                &mut passes,
-            );
             let h = plan.control_period_s;
+            let los = ap
+                .los
+                .update(t, body.north_m, body.east_m, h, &mut self.passes);
             let yaw_nm = ap.heading.update(
                 los.heading_cmd_rad,
                 body.psi_rad,
@@ -299,77 +350,85 @@ pub fn run_plan(plan: &Plan) -> SimRun {
             let surge_n = ap.speed.update(ap.speed_mps, speed, h, ap.saturated);
             let alloc = allocate(params, surge_n, yaw_nm);
             ap.saturated = alloc.saturated;
-            n_cmd = alloc.n_cmd_radps;
+            self.n_cmd = alloc.n_cmd_radps;
         }
-        if autopilot.is_none() {
+        if self.autopilot.is_none() {
             // Manual commands change at their own instants, not only at control ticks.
-            n_cmd = manual_at(t).map(|n| params.saturate_shaft_radps(n));
+            self.n_cmd = self.manual_at(t).map(|n| params.saturate_shaft_radps(n));
         }
+    }
 
-        if truth_clock.fire(t) {
-            truth.push(truth_sample(
+    /// The truth and every sensor sample due at `t`.
+    fn record(&mut self, t: f64, body: &BodyMotion, disturbance_force: [f64; 3]) {
+        let plan = self.plan;
+        let start = plan.start_unix_s;
+        if self.truth_clock.fire(t) {
+            let act = Actuation {
+                n_cmd_radps: self.n_cmd,
+                loss: self.loss_at(t),
+            };
+            self.truth.push(truth_sample(
                 plan,
-                &model,
-                &x,
+                &self.model,
+                &self.x,
                 t,
-                &Actuation {
-                    n_cmd_radps: n_cmd,
-                    loss: loss_at(t),
-                },
+                &act,
                 disturbance_force,
-                autopilot.as_ref().map(|ap| &ap.los),
+                self.autopilot.as_ref().map(|ap| &ap.los),
             ));
         }
-        if let Some((sensor, clock)) = gnss.as_mut()
+        if let Some((sensor, clock)) = self.gnss.as_mut()
             && clock.fire(t)
         {
-            events.push(SensorEvent::Gnss(sensor.sample(
+            self.events.push(SensorEvent::Gnss(sensor.sample(
                 t,
                 start,
-                &body,
+                body,
                 &plan.frame,
             )));
         }
-        if let Some((sensor, clock)) = heading.as_mut()
+        if let Some((sensor, clock)) = self.heading.as_mut()
             && clock.fire(t)
         {
-            events.push(SensorEvent::Heading(sensor.sample(t, start, body.psi_rad)));
+            self.events
+                .push(SensorEvent::Heading(sensor.sample(t, start, body.psi_rad)));
         }
-        if let Some((sensor, clock)) = props.as_mut()
+        if let Some((sensor, clock)) = self.props.as_mut()
             && clock.fire(t)
         {
-            let shafts = [x[idx::N_PORT], x[idx::N_STB]];
-            events.push(SensorEvent::PropellerMeasured(
+            let shafts = [self.x[idx::N_PORT], self.x[idx::N_STB]];
+            self.events.push(SensorEvent::PropellerMeasured(
                 sensor.sample(t, start, shafts),
             ));
-            events.push(SensorEvent::PropellerCommanded(PropellerSpeeds {
-                time_s: start + t,
-                port_radps: n_cmd[0],
-                starboard_radps: n_cmd[1],
-            }));
+            self.events
+                .push(SensorEvent::PropellerCommanded(PropellerSpeeds {
+                    time_s: start + t,
+                    port_radps: self.n_cmd[0],
+                    starboard_radps: self.n_cmd[1],
+                }));
         }
-
-        if let Some((sensor, clock)) = gyro.as_mut()
+        if let Some((sensor, clock)) = self.gyro.as_mut()
             && clock.fire(t)
         {
-            events.push(SensorEvent::YawRate(sensor.sample(t, start, body.r_radps)));
+            self.events
+                .push(SensorEvent::YawRate(sensor.sample(t, start, body.r_radps)));
         }
+    }
 
-        if t >= plan.duration_s - SAME_INSTANT_S {
-            break;
-        }
-
-        let mut t_next = plan
+    /// The next instant after `t` at which something happens.
+    fn next_instant(&self, t: f64) -> f64 {
+        let mut t_next = self
+            .plan
             .duration_s
-            .min(control_clock.due_s())
-            .min(truth_clock.due_s());
+            .min(self.control_clock.due_s())
+            .min(self.truth_clock.due_s());
         for due in [
-            gnss.as_ref().map(|(_, c)| c.due_s()),
-            heading.as_ref().map(|(_, c)| c.due_s()),
-            props.as_ref().map(|(_, c)| c.due_s()),
-            gyro.as_ref().map(|(_, c)| c.due_s()),
-            disturbance.as_ref().map(|(_, c)| c.due_s()),
-            breakpoints
+            self.gnss.as_ref().map(|(_, c)| c.due_s()),
+            self.heading.as_ref().map(|(_, c)| c.due_s()),
+            self.props.as_ref().map(|(_, c)| c.due_s()),
+            self.gyro.as_ref().map(|(_, c)| c.due_s()),
+            self.disturbance.as_ref().map(|(_, c)| c.due_s()),
+            self.breakpoints
                 .iter()
                 .copied()
                 .find(|b| *b > t + SAME_INSTANT_S),
@@ -379,16 +438,23 @@ pub fn run_plan(plan: &Plan) -> SimRun {
         {
             t_next = t_next.min(due);
         }
+        t_next
+    }
 
+    /// Integrates the state from `t` to `t_next` with RK4 in equal steps of
+    /// at most the plan's step.
+    fn integrate(&mut self, t: f64, t_next: f64, disturbance_force: [f64; 3]) {
+        let plan = self.plan;
         let steps = (((t_next - t) / plan.step_s) - 1e-9).ceil().max(1.0);
         let h = (t_next - t) / steps;
         for k in 0..steps as usize {
             let t0 = t + k as f64 * h;
             let act = Actuation {
-                n_cmd_radps: n_cmd,
-                loss: loss_at(t0 + 0.5 * h),
+                n_cmd_radps: self.n_cmd,
+                loss: self.loss_at(t0 + 0.5 * h),
             };
-            x = rk4_step(
+            let model = &self.model;
+            self.x = rk4_step(
                 |ts, xs| {
                     let (current, accel) = plan.current.at(ts);
                     let wind_force = plan
@@ -403,21 +469,23 @@ pub fn run_plan(plan: &Plan) -> SimRun {
                     model.derivative(xs, &act, &env)
                 },
                 t0,
-                &x,
+                &self.x,
                 h,
             );
         }
-        t = t_next;
     }
 
-    events.sort_by(|a, b| a.time_s().total_cmp(&b.time_s()));
-    SimRun {
-        name: plan.name.clone(),
-        start_unix_s: start,
-        origin: plan.frame.origin(),
-        events,
-        truth,
-        waypoint_passes: passes,
+    fn finish(self) -> SimRun {
+        let mut events = self.events;
+        events.sort_by(|a, b| a.time_s().total_cmp(&b.time_s()));
+        SimRun {
+            name: self.plan.name.clone(),
+            start_unix_s: self.plan.start_unix_s,
+            origin: self.plan.frame.origin(),
+            events,
+            truth: self.truth,
+            waypoint_passes: self.passes,
+        }
     }
 }
 

@@ -425,39 +425,7 @@ impl FixAssembler {
                 lon_deg,
                 hdop,
                 ..
-            } => {
-                if !Self::accepts(&mut self.position_source, record.source) {
-                    self.stats.positions_other_sources += 1;
-                    return;
-                }
-                let not_after = self.last_fix_s.is_some_and(|t| record.time_s <= t)
-                    || self.pending.is_some_and(|p| record.time_s <= p.time_s);
-                if not_after {
-                    self.stats.positions_not_after_previous += 1;
-                    return;
-                }
-                let fine = matches!(record.source, Source::N2k(_));
-                let repeated = fine
-                    && self.last_position.is_some_and(|(t, lat, lon)| {
-                        record.time_s - t < self.config.repeat_window_s
-                            && (lat - lat_deg).abs() < 1e-9
-                            && (lon - lon_deg).abs() < 1e-9
-                    });
-                if repeated && self.config.drop_repeated_positions {
-                    self.stats.positions_repeated += 1;
-                    return;
-                }
-                self.last_position = Some((record.time_s, lat_deg, lon_deg));
-                self.pending = Some(GnssFix {
-                    time_s: record.time_s,
-                    position: LatLon { lat_deg, lon_deg },
-                    sog_mps: None,
-                    cog_rad: None,
-                    heading_rad: None,
-                    yaw_rate_radps: None,
-                    hdop,
-                });
-            }
+            } => self.on_position(&record, LatLon { lat_deg, lon_deg }, hdop),
             Measurement::CourseSpeed { cog_rad, sog_mps } => {
                 if !Self::accepts(&mut self.course_source, record.source) {
                     self.stats.courses_other_sources += 1;
@@ -476,45 +444,9 @@ impl FixAssembler {
                     time_s: record.time_s,
                     value: radps,
                 };
-                let (mine, other) = match side {
-                    Side::Port => (&mut self.port, &mut self.starboard),
-                    Side::Starboard => (&mut self.starboard, &mut self.port),
-                };
-                if mine.replace(sample).is_some() {
-                    self.stats.propeller_unpaired += 1;
-                }
-                if let Some(o) = *other
-                    && (o.time_s - sample.time_s).abs() <= self.config.pair_window_s
-                {
-                    let (port, starboard) = match side {
-                        Side::Port => (sample, o),
-                        Side::Starboard => (o, sample),
-                    };
-                    self.port = None;
-                    self.starboard = None;
-                    let pair = PropellerSpeeds {
-                        time_s: port.time_s.max(starboard.time_s),
-                        port_radps: port.value,
-                        starboard_radps: starboard.value,
-                    };
-                    if self.emit(Assembled::Propellers(pair), out) {
-                        self.stats.propeller_pairs += 1;
-                    }
-                }
+                self.on_propeller_speed(side, sample, out);
             }
-            Measurement::GnssFix(fix) => {
-                let after = self.last_fix_s.is_none_or(|t| fix.time_s > t);
-                if after && self.emit(Assembled::Fix(fix), out) {
-                    self.last_fix_s = Some(fix.time_s);
-                    self.stats.fixes += 1;
-                    self.stats.fixes_with_course +=
-                        u64::from(fix.cog_rad.is_some() || fix.sog_mps.is_some());
-                    self.stats.fixes_with_heading += u64::from(fix.heading_rad.is_some());
-                    self.stats.fixes_with_yaw_rate += u64::from(fix.yaw_rate_radps.is_some());
-                } else if !after {
-                    self.stats.positions_not_after_previous += 1;
-                }
-            }
+            Measurement::GnssFix(fix) => self.on_gnss_fix(fix, out),
             Measurement::Propellers(pair) => {
                 if self.emit(Assembled::Propellers(pair), out) {
                     self.stats.propeller_pairs += 1;
@@ -546,6 +478,90 @@ impl FixAssembler {
                     });
                 }
             }
+        }
+    }
+
+    /// A position record: from the chosen source, after the previous fix,
+    /// and not an NMEA 2000 repeat of the last position (when the
+    /// configuration drops those), it starts the pending fix.
+    fn on_position(&mut self, record: &Record, position: LatLon, hdop: Option<f64>) {
+        if !Self::accepts(&mut self.position_source, record.source) {
+            self.stats.positions_other_sources += 1;
+            return;
+        }
+        let not_after = self.last_fix_s.is_some_and(|t| record.time_s <= t)
+            || self.pending.is_some_and(|p| record.time_s <= p.time_s);
+        if not_after {
+            self.stats.positions_not_after_previous += 1;
+            return;
+        }
+        let LatLon { lat_deg, lon_deg } = position;
+        let fine = matches!(record.source, Source::N2k(_));
+        let repeated = fine
+            && self.last_position.is_some_and(|(t, lat, lon)| {
+                record.time_s - t < self.config.repeat_window_s
+                    && (lat - lat_deg).abs() < 1e-9
+                    && (lon - lon_deg).abs() < 1e-9
+            });
+        if repeated && self.config.drop_repeated_positions {
+            self.stats.positions_repeated += 1;
+            return;
+        }
+        self.last_position = Some((record.time_s, lat_deg, lon_deg));
+        self.pending = Some(GnssFix {
+            time_s: record.time_s,
+            position,
+            sog_mps: None,
+            cog_rad: None,
+            heading_rad: None,
+            yaw_rate_radps: None,
+            hdop,
+        });
+    }
+
+    /// One shaft's speed: paired with the other shaft's when that came
+    /// within the pairing window.
+    fn on_propeller_speed(&mut self, side: Side, sample: Fresh<f64>, out: &mut Vec<Assembled>) {
+        let (mine, other) = match side {
+            Side::Port => (&mut self.port, &mut self.starboard),
+            Side::Starboard => (&mut self.starboard, &mut self.port),
+        };
+        if mine.replace(sample).is_some() {
+            self.stats.propeller_unpaired += 1;
+        }
+        if let Some(o) = *other
+            && (o.time_s - sample.time_s).abs() <= self.config.pair_window_s
+        {
+            let (port, starboard) = match side {
+                Side::Port => (sample, o),
+                Side::Starboard => (o, sample),
+            };
+            self.port = None;
+            self.starboard = None;
+            let pair = PropellerSpeeds {
+                time_s: port.time_s.max(starboard.time_s),
+                port_radps: port.value,
+                starboard_radps: starboard.value,
+            };
+            if self.emit(Assembled::Propellers(pair), out) {
+                self.stats.propeller_pairs += 1;
+            }
+        }
+    }
+
+    /// A whole fix (the project's JSON lines): emitted if after the
+    /// previous one.
+    fn on_gnss_fix(&mut self, fix: GnssFix, out: &mut Vec<Assembled>) {
+        let after = self.last_fix_s.is_none_or(|t| fix.time_s > t);
+        if after && self.emit(Assembled::Fix(fix), out) {
+            self.last_fix_s = Some(fix.time_s);
+            self.stats.fixes += 1;
+            self.stats.fixes_with_course +=
+                u64::from(fix.cog_rad.is_some() || fix.sog_mps.is_some());
+            self.stats.fixes_with_heading += u64::from(fix.heading_rad.is_some());
+            self.stats.fixes_with_yaw_rate += u64::from(fix.yaw_rate_radps.is_some());
+        } else if !after {
+            self.stats.positions_not_after_previous += 1;
         }
     }
 }

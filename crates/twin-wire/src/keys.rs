@@ -1,4 +1,4 @@
-//! Zenoh key expressions of the contract (PRODUCT.md): vessel ids, the topic
+//! Zenoh key expressions of the contract (docs/contracts.md): vessel ids, the topic
 //! of each key, building keys under a configurable prefix and parsing a
 //! received key back into (vessel, topic).
 //!

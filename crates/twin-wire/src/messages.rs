@@ -1,4 +1,4 @@
-//! The JSON input payloads of the contract (PRODUCT.md): GNSS fixes on
+//! The JSON input payloads of the contract (docs/contracts.md): GNSS fixes on
 //! `{prefix}/{vessel}/gnss` and propeller commands on
 //! `{prefix}/{vessel}/actuators`, their validation into the estimator's
 //! types, and their encoders (used by the replay tool and the simulator).

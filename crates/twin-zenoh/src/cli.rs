@@ -1,5 +1,5 @@
 //! Zenoh's usual command-line flags, shared by `twind` and `twin-replay`
-//! (PRODUCT.md, command-line conventions), and their translation into a
+//! (docs/contracts.md, command-line conventions), and their translation into a
 //! [`zenoh::Config`].
 //!
 //! The translation starts from the `--config` file (Zenoh's own JSON5

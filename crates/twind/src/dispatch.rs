@@ -3,11 +3,11 @@
 //!
 //! It runs inside the input subscriber's callback, on the Zenoh thread that
 //! received the message: no queue and no task of its own between Zenoh and
-//! the vessels. (Until the twelfth session it was a task on the runtime's
-//! workers reading a Zenoh FIFO channel; that serial loop competed with the
-//! vessel tasks it fed, and at 1,000 vessels flat out the daemon carried
-//! about 70,000 fixes/s that way against about 125,000 this way, side by
-//! side: docs/daemon-performance.md, section 5.)
+//! the vessels. A task on the runtime's workers reading a Zenoh FIFO channel
+//! would be one serial loop competing with the vessel tasks it feeds for the
+//! same workers; at 1,000 vessels flat out that design carried about half
+//! the fixes per second this one does (docs/performance.md, "The
+//! dispatcher").
 //!
 //! Rules it keeps:
 //! - a message whose vessel's queue is full waits for room on the Zenoh
@@ -64,13 +64,13 @@ struct VesselRoute {
     /// With Zenoh 1.10 a message on a key that is not a node of the
     /// session's resource tree has its route computed afresh, by a walk
     /// over every node under `{prefix}/`; a declared key is a node whose
-    /// route is cached (docs/daemon-performance.md, section 1). Declared
+    /// route is cached (docs/performance.md, "Declared keys"). Declared
     /// here rather than by the vessel's task, so that a vessel's messages
-    /// are not routed uncached while its task is still starting: with the
-    /// dispatcher in the callback and the tasks declaring, a fleet of 5,000
-    /// vessels starting at once never got going (Zenoh's receiving thread
-    /// spent its time computing those routes, under the routing tables'
-    /// lock that the tasks' declarations wait for).
+    /// are not routed uncached while its task is still starting: were the
+    /// tasks to declare, a fleet of 5,000 vessels starting at once would
+    /// never get going (Zenoh's receiving thread spends its time computing
+    /// those routes, under the routing tables' lock that the tasks'
+    /// declarations wait for).
     inputs: [Option<KeyExpr<'static>>; 3],
 }
 
@@ -177,8 +177,8 @@ impl Router {
             // A copy: a payload handed on as Zenoh's own buffer would keep
             // the receive buffer it lies in from being recycled while it
             // waits in a vessel's queue, and with enough of them queued the
-            // session stops reading (seen as a stalled test with several
-            // daemons in one process).
+            // session stops reading (a test with several daemons in one
+            // process stalls).
             VesselEvent::Payload {
                 topic,
                 bytes: payload.to_bytes().into_owned(),

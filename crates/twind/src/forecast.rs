@@ -4,34 +4,34 @@
 //! twin's state and covariance through sixty 1 s steps, then sixty points of
 //! JSON), against a few microseconds for the estimator step that produces a
 //! fault. Computed in the vessel's task, on the tokio workers, each forecast
-//! held up every other vessel's faults behind it: at 1,000 vessels they were
-//! about a third of the workers' time (`twin-bench daemon`, CPU profile in
-//! `docs/daemon-performance.md`).
+//! would hold up every other vessel's faults behind it: at 1,000 vessels
+//! forecasts are about a third of the workers' time (docs/performance.md,
+//! "The forecasts").
 //!
 //! Here they run on their own threads (`[publish] forecast_threads`) under
 //! Linux's `SCHED_IDLE` policy: they run on the CPU time nothing else of
 //! normal priority wants, so when the machine is busy the kernel gives the
-//! estimates and the faults the CPU first. (At nice 10, the policy until
-//! 2026-11-22, they still took about a third of a core at 4,500 vessels x
-//! 10 Hz and the faults' p50 latency was 7 ms; with `SCHED_IDLE` 0.8 ms.) A
+//! estimates and the faults the CPU first. (At nice 10 they take about a
+//! third of a core at 4,500 vessels x 10 Hz and the faults' p50 latency is
+//! 7 ms; with `SCHED_IDLE` 0.8 ms.) A
 //! vessel task hands over a copy of its twin (plain data, a few kilobytes)
 //! and gets back the prediction's JSON; it keeps at most one forecast in
 //! flight, and when the next is due before that one is out it asks again as
 //! soon as it is (from its newest estimate). So under load forecasts come
-//! less often and never queue up; on an idle machine they come at
-//! `prediction_interval_s` as before. [`computed_total`] counts
+//! less often and never queue up; on an idle machine they come every
+//! `prediction_interval_s`. [`computed_total`] counts
 //! them, so that a benchmark can say how often they came.
 //!
-//! `SCHED_IDLE` alone did not keep them off the fault path near the
-//! daemon's limit (2026-11-22, eighth session): at 5,200 vessels x 10 Hz the
-//! faults' p50 was 98-278 ms with forecasts (none of five runs sustained)
-//! and down to 2.6 ms with them off. An idle-policy thread still takes a CPU
-//! in the gaps between the busy threads' wake-ups, and the busy threads
-//! then ran slower. So the threads also wait while the fault path is
+//! `SCHED_IDLE` alone does not keep them off the fault path near the
+//! daemon's limit: at 5,200 vessels x 10 Hz the faults' p50 is 98-278 ms
+//! with forecasts that do not wait and 2.6 ms with no forecasts. An
+//! idle-policy thread still takes a CPU in the gaps between the busy
+//! threads' wake-ups, and the busy threads then run slower. So the threads
+//! also wait while the fault path is
 //! saturated ([`FaultPathLoad`]: events routed to the vessel tasks have
 //! not all been handled for [`SATURATED_AFTER`]), each job at most
 //! [`MAX_YIELD`], so that forecasts never stop altogether: on a saturated
-//! daemon, one per thread per second (docs/daemon-performance.md).
+//! daemon, one per thread per second (docs/performance.md).
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc;

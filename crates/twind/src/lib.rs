@@ -237,34 +237,12 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
     tracing::info!(inputs = %input_key_expr(&settings), "twind running");
 
     // The queryable answers from the shared map; it needs no vessel task.
-    let answer_latest = {
-        let latest = latest.clone();
-        let keys = settings.keys.clone();
-        let shutdown = shutdown.clone();
-        tokio::spawn(async move {
-            loop {
-                let query = tokio::select! {
-                    _ = shutdown.cancelled() => break,
-                    q = queryable.recv_async() => match q { Ok(q) => q, Err(_) => break },
-                };
-                let replies: Vec<(String, Vec<u8>)> = latest
-                    .snapshot()
-                    .into_iter()
-                    .filter_map(|(vessel, bytes)| {
-                        let id = twin_wire::VesselId::new(&vessel).ok()?;
-                        let key = keys.twin_state(&id);
-                        let ke = KeyExpr::try_from(key.as_str()).ok()?;
-                        query.key_expr().intersects(&ke).then_some((key, bytes))
-                    })
-                    .collect();
-                for (key, bytes) in replies {
-                    if let Err(e) = query.reply(key, bytes).await {
-                        tracing::warn!("query not answered: {e}");
-                    }
-                }
-            }
-        })
-    };
+    let answer_latest = tokio::spawn(answer_state_queries(
+        queryable,
+        latest.clone(),
+        settings.keys.clone(),
+        shutdown.clone(),
+    ));
 
     loop {
         tokio::select! {
@@ -299,6 +277,37 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         "twind stopped"
     );
     Ok(summary)
+}
+
+/// Answers queries on the state queryable from the latest states, until
+/// `shutdown` or the queryable ends.
+async fn answer_state_queries(
+    queryable: zenoh::query::Queryable<zenoh::handlers::FifoChannelHandler<zenoh::query::Query>>,
+    latest: LatestStates,
+    keys: twin_wire::KeySpace,
+    shutdown: CancellationToken,
+) {
+    loop {
+        let query = tokio::select! {
+            _ = shutdown.cancelled() => break,
+            q = queryable.recv_async() => match q { Ok(q) => q, Err(_) => break },
+        };
+        let replies: Vec<(String, Vec<u8>)> = latest
+            .snapshot()
+            .into_iter()
+            .filter_map(|(vessel, bytes)| {
+                let id = twin_wire::VesselId::new(&vessel).ok()?;
+                let key = keys.twin_state(&id);
+                let ke = KeyExpr::try_from(key.as_str()).ok()?;
+                query.key_expr().intersects(&ke).then_some((key, bytes))
+            })
+            .collect();
+        for (key, bytes) in replies {
+            if let Err(e) = query.reply(key, bytes).await {
+                tracing::warn!("query not answered: {e}");
+            }
+        }
+    }
 }
 
 /// Helpers shared by the unit tests.

@@ -162,19 +162,19 @@ pub struct PublishSettings {
     /// Whether each vessel's twin holds the liveliness token
     /// `{prefix}/{vessel}/twin/alive` (the contract; default true). Off,
     /// `twin/state` and its `stale` flag still say whether a twin runs.
-    /// With Zenoh 1.10 every token under the prefix made the routing of
-    /// every undeclared key dearer; since the daemon declares each vessel's
-    /// keys (`vessel.rs`), turning them off is no longer needed for speed
+    /// With Zenoh 1.10 every token under the prefix makes the routing of
+    /// every undeclared key dearer; the daemon declares each vessel's keys
+    /// (`vessel.rs`), so turning the tokens off is not needed for speed
     /// (`twin-bench daemon --no-vessel-liveliness` measures it).
     pub vessel_liveliness: bool,
     /// The token's key with `{vessel}` for the vessel id, where it is not
     /// the contract's `{prefix}/{vessel}/twin/alive` (`None`). A key outside
     /// the data prefix with the vessel's chunk two levels down, e.g.
-    /// `asv-twins/alive/{vessel}`, kept the tokens off the routing of
+    /// `asv-twins/alive/{vessel}`, keeps the tokens off the routing of
     /// undeclared keys under the prefix (Zenoh 1.10 looks at every child of
-    /// a top-level node, so `asv-alive/{vessel}` would not); since the
-    /// daemon declares each vessel's keys it is no longer needed for speed
-    /// (docs/daemon-performance.md).
+    /// a top-level node, so `asv-alive/{vessel}` would not); with the
+    /// daemon declaring each vessel's keys it is not needed for speed
+    /// (docs/performance.md).
     pub vessel_liveliness_key: Option<String>,
     /// Threads computing the forecasts, at a lower scheduling priority than
     /// the rest of the daemon (see `forecast`); 0 in the file means half the
@@ -323,85 +323,8 @@ impl Settings {
             key: "keys.prefix",
             reason: e.to_string(),
         })?;
-        let own = raw.vessels.own.unwrap_or_else(|| "*".to_string());
-        if own.is_empty() || own.contains('/') || own.contains("**") {
-            return Err(SettingsError::Invalid {
-                key: "vessels.own",
-                reason: format!(
-                    "{own:?} must be one key-expression chunk such as `*` or `north-$*`"
-                ),
-            });
-        }
-        let vessels = VesselSettings {
-            own,
-            drop_after_silence_s: positive(
-                "vessels.drop_after_silence_s",
-                raw.vessels.drop_after_silence_s.unwrap_or(300.0),
-            )?,
-            stale_after_s: positive(
-                "vessels.stale_after_s",
-                raw.vessels.stale_after_s.unwrap_or(2.0),
-            )?,
-            max_vessels: match raw.vessels.max_vessels.unwrap_or(20_000) {
-                0 => {
-                    return Err(SettingsError::Invalid {
-                        key: "vessels.max_vessels",
-                        reason: "must be at least 1".into(),
-                    });
-                }
-                n => n,
-            },
-            queue_depth: match raw.vessels.queue_depth.unwrap_or(256) {
-                0 => {
-                    return Err(SettingsError::Invalid {
-                        key: "vessels.queue_depth",
-                        reason: "must be at least 1".into(),
-                    });
-                }
-                n => n,
-            },
-        };
-        let publish = PublishSettings {
-            prediction_interval_s: positive(
-                "publish.prediction_interval_s",
-                raw.publish.prediction_interval_s.unwrap_or(1.0),
-            )?,
-            prediction_horizon_s: positive(
-                "publish.prediction_horizon_s",
-                raw.publish.prediction_horizon_s.unwrap_or(60.0),
-            )?,
-            prediction_step_s: positive(
-                "publish.prediction_step_s",
-                raw.publish.prediction_step_s.unwrap_or(1.0),
-            )?,
-            stats_interval_s: positive(
-                "publish.stats_interval_s",
-                raw.publish.stats_interval_s.unwrap_or(5.0),
-            )?,
-            vessel_liveliness: raw.publish.vessel_liveliness.unwrap_or(true),
-            vessel_liveliness_key: match raw.publish.vessel_liveliness_key {
-                Some(template) => Some(liveliness_key_template(template)?),
-                None => None,
-            },
-            forecast_threads: match raw.publish.forecast_threads.unwrap_or(0) {
-                0 => std::thread::available_parallelism()
-                    .map(|n| (n.get() / 2).max(1))
-                    .unwrap_or(1),
-                n if n > 256 => {
-                    return Err(SettingsError::Invalid {
-                        key: "publish.forecast_threads",
-                        reason: format!("{n} threads: at most 256"),
-                    });
-                }
-                n => n,
-            },
-        };
-        if publish.prediction_horizon_s / publish.prediction_step_s > 3600.0 {
-            return Err(SettingsError::Invalid {
-                key: "publish.prediction_step_s",
-                reason: "more than 3600 forecast points per horizon".into(),
-            });
-        }
+        let vessels = vessel_settings(raw.vessels)?;
+        let publish = publish_settings(raw.publish)?;
         let max_payload_bytes = raw.input.max_payload_bytes.unwrap_or(64 * 1024);
         if !(256..=16 * 1024 * 1024).contains(&max_payload_bytes) {
             return Err(SettingsError::Invalid {
@@ -429,33 +352,7 @@ impl Settings {
                 reason: format!("{:?} is not an address such as 127.0.0.1:8080", web.listen),
             });
         }
-        let mut twin = TwinConfig::default();
-        if let Some(b) = raw.twin.estimate_current {
-            twin.kinetic.estimate_current = b;
-        }
-        if let Some(t) = raw.twin.forgetting_time_constant_s {
-            twin.kinetic.filter.forgetting_time_constant_s =
-                positive("twin.forgetting_time_constant_s", t)?;
-        }
-        if let Some(v) = raw.twin.suspect_loss {
-            twin.decision.suspect_loss = fraction("twin.suspect_loss", v)?;
-        }
-        if let Some(v) = raw.twin.fault_loss {
-            twin.decision.fault_loss = fraction("twin.fault_loss", v)?;
-        }
-        if let Some(v) = raw.twin.clear_loss {
-            twin.decision.clear_loss = fraction("twin.clear_loss", v)?;
-        }
-        let d = twin.decision;
-        if !(d.clear_loss < d.suspect_loss && d.suspect_loss <= d.fault_loss) {
-            return Err(SettingsError::Invalid {
-                key: "twin.suspect_loss",
-                reason: format!(
-                    "need clear_loss < suspect_loss <= fault_loss, got {} / {} / {}",
-                    d.clear_loss, d.suspect_loss, d.fault_loss
-                ),
-            });
-        }
+        let twin = twin_config(&raw.twin)?;
         let diagnose = diagnose_settings(&raw.diagnose)?;
         Ok(Self {
             keys,
@@ -468,6 +365,117 @@ impl Settings {
             diagnose,
         })
     }
+}
+
+/// `[vessels]`, validated.
+fn vessel_settings(raw: RawVessels) -> Result<VesselSettings, SettingsError> {
+    let own = raw.own.unwrap_or_else(|| "*".to_string());
+    if own.is_empty() || own.contains('/') || own.contains("**") {
+        return Err(SettingsError::Invalid {
+            key: "vessels.own",
+            reason: format!("{own:?} must be one key-expression chunk such as `*` or `north-$*`"),
+        });
+    }
+    let vessels = VesselSettings {
+        own,
+        drop_after_silence_s: positive(
+            "vessels.drop_after_silence_s",
+            raw.drop_after_silence_s.unwrap_or(300.0),
+        )?,
+        stale_after_s: positive("vessels.stale_after_s", raw.stale_after_s.unwrap_or(2.0))?,
+        max_vessels: at_least_one("vessels.max_vessels", raw.max_vessels.unwrap_or(20_000))?,
+        queue_depth: at_least_one("vessels.queue_depth", raw.queue_depth.unwrap_or(256))?,
+    };
+    Ok(vessels)
+}
+
+/// `n`, refused when zero.
+fn at_least_one(key: &'static str, n: usize) -> Result<usize, SettingsError> {
+    if n == 0 {
+        return Err(SettingsError::Invalid {
+            key,
+            reason: "must be at least 1".into(),
+        });
+    }
+    Ok(n)
+}
+
+/// `[publish]`, validated.
+fn publish_settings(raw: RawPublish) -> Result<PublishSettings, SettingsError> {
+    let publish = PublishSettings {
+        prediction_interval_s: positive(
+            "publish.prediction_interval_s",
+            raw.prediction_interval_s.unwrap_or(1.0),
+        )?,
+        prediction_horizon_s: positive(
+            "publish.prediction_horizon_s",
+            raw.prediction_horizon_s.unwrap_or(60.0),
+        )?,
+        prediction_step_s: positive(
+            "publish.prediction_step_s",
+            raw.prediction_step_s.unwrap_or(1.0),
+        )?,
+        stats_interval_s: positive(
+            "publish.stats_interval_s",
+            raw.stats_interval_s.unwrap_or(5.0),
+        )?,
+        vessel_liveliness: raw.vessel_liveliness.unwrap_or(true),
+        vessel_liveliness_key: match raw.vessel_liveliness_key {
+            Some(template) => Some(liveliness_key_template(template)?),
+            None => None,
+        },
+        forecast_threads: match raw.forecast_threads.unwrap_or(0) {
+            0 => std::thread::available_parallelism()
+                .map(|n| (n.get() / 2).max(1))
+                .unwrap_or(1),
+            n if n > 256 => {
+                return Err(SettingsError::Invalid {
+                    key: "publish.forecast_threads",
+                    reason: format!("{n} threads: at most 256"),
+                });
+            }
+            n => n,
+        },
+    };
+    if publish.prediction_horizon_s / publish.prediction_step_s > 3600.0 {
+        return Err(SettingsError::Invalid {
+            key: "publish.prediction_step_s",
+            reason: "more than 3600 forecast points per horizon".into(),
+        });
+    }
+    Ok(publish)
+}
+
+/// `[twin]`: the estimator's settings over its defaults, validated.
+fn twin_config(raw: &RawTwin) -> Result<TwinConfig, SettingsError> {
+    let mut twin = TwinConfig::default();
+    if let Some(b) = raw.estimate_current {
+        twin.kinetic.estimate_current = b;
+    }
+    if let Some(t) = raw.forgetting_time_constant_s {
+        twin.kinetic.filter.forgetting_time_constant_s =
+            positive("twin.forgetting_time_constant_s", t)?;
+    }
+    if let Some(v) = raw.suspect_loss {
+        twin.decision.suspect_loss = fraction("twin.suspect_loss", v)?;
+    }
+    if let Some(v) = raw.fault_loss {
+        twin.decision.fault_loss = fraction("twin.fault_loss", v)?;
+    }
+    if let Some(v) = raw.clear_loss {
+        twin.decision.clear_loss = fraction("twin.clear_loss", v)?;
+    }
+    let d = twin.decision;
+    if !(d.clear_loss < d.suspect_loss && d.suspect_loss <= d.fault_loss) {
+        return Err(SettingsError::Invalid {
+            key: "twin.suspect_loss",
+            reason: format!(
+                "need clear_loss < suspect_loss <= fault_loss, got {} / {} / {}",
+                d.clear_loss, d.suspect_loss, d.fault_loss
+            ),
+        });
+    }
+    Ok(twin)
 }
 
 fn diagnose_settings(raw: &RawDiagnose) -> Result<DiagnoseSettings, SettingsError> {

@@ -79,18 +79,18 @@ pub enum VesselEvent {
 /// With Zenoh 1.10 a message on a key that is not a node of the routing
 /// session's resource tree has its route computed afresh, by a walk that
 /// visits every node under `{prefix}/`: each vessel's liveliness token is
-/// such a node, so with N tokens every message cost O(N) and the fleet
-/// O(N^2) (421 vessels sustained). A declared key expression is a node
-/// whose route is cached, so the daemon's routing of its own outputs no
-/// longer walks the tree (`twin-bench daemon` measured it;
-/// docs/daemon-performance.md). (The vessel's input keys are declared by
+/// such a node, so with N tokens every message costs O(N) and the fleet
+/// O(N^2) (about 400 vessels at 10 Hz on two cores). A declared key
+/// expression is a node whose route is cached, so the daemon's routing of
+/// its own outputs does not walk the tree (`twin-bench daemon` measures
+/// it; docs/performance.md). (The vessel's input keys are declared by
 /// the dispatcher: `dispatch::VesselRoute`.) Unlike a publisher or a token
 /// a declared key expression is not announced when declared, though Zenoh
 /// may declare it to a peer it routes the key to (which then makes a node
 /// too). Declaring costs a walk, so a key is declared only once it is
 /// used (a vessel without alarms never has its `alarm` key declared).
-/// Not a declared Zenoh publisher: six of those per vessel made the whole
-/// fleet slower as it grew.
+/// Not a declared Zenoh publisher: six of those per vessel make the whole
+/// fleet slower as it grows.
 struct VesselKey {
     key: KeyExpr<'static>,
     declared: OnceLock<KeyExpr<'static>>,

@@ -33,8 +33,15 @@
 //! daemon's path each key is declared to that session (`declare_keyexpr`),
 //! and the subscriber declares the keys it receives on to its own, as the
 //! daemon does: with Zenoh 1.10 only a declared key's route is cached. Raw
-//! Zenoh's keys stay strings (see [`measure`] for why, and why not one
+//! Zenoh's keys stay strings (see `VesselKeys` for why, and why not one
 //! declared publisher per key, as `twin-replay` has in its own session).
+//!
+//! # Ending
+//! The generator stops, the subscriber is undeclared, the daemon is told to
+//! stop and drains its queues, and the Zenoh sessions close last, each wait
+//! bounded ([`DRAIN_LIMIT`], [`CLOSE_LIMIT`], [`GENERATOR_STOP_LIMIT`]): a
+//! daemon saturated at the window's end could otherwise take minutes to
+//! drain work nobody measures.
 //!
 //! # Warm-up
 //! At least the warm-up asked for, and until every vessel has been heard
@@ -52,26 +59,24 @@
 //! (`CongestionControl::Block`, as `twin-replay` publishes) sets the pace.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::thread::JoinHandle;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::Context;
 use serde::{Deserialize, Serialize};
 use tokio_util::sync::CancellationToken;
-use twin_wire::messages::{ActuatorCommand, encode_actuators, encode_gnss};
-use twin_wire::time::parse_rfc3339;
 use twin_wire::{KeySpace, Topic, VesselId};
 use zenoh::Wait;
 use zenoh::key_expr::KeyExpr;
-use zenoh::pubsub::Publisher;
-use zenoh::qos::CongestionControl;
-use zenoh::sample::Sample;
+use zenoh::pubsub::{Publisher, Subscriber};
 
+use super::generator::{GenShared, Generator};
 use super::histogram::Histogram;
 use super::motion::{Circle, Fleet};
 use super::procstat;
-use crate::rng::SplitMix64;
+use super::receiver::{Receiver, Window};
 
 /// The warm-up ends at most this many times its least length.
 pub const WARMUP_CAP: f64 = 12.0;
@@ -83,9 +88,7 @@ pub const WARMUP_CAP: f64 = 12.0;
 /// start-up work (each vessel's token and keys enter Zenoh's resource
 /// trees, at a cost that grows with the fleet), which leaves a backlog, and
 /// then every vessel's first forecast at once; the window should measure
-/// the steady load. At 5,000 vessels with tokens (2026-11-22): every vessel
-/// heard after 7 s, the generator back on schedule after 17 s, deliveries
-/// under a millisecond from 24 s.
+/// the steady load (docs/performance.md: a whole fleet starting at once).
 pub const CAUGHT_UP_LAG_MS: f64 = 50.0;
 
 /// See [`CAUGHT_UP_LAG_MS`].
@@ -144,17 +147,6 @@ pub struct PointSpec {
 /// docs/deploy.md suggests for a large fleet.
 pub const OUTSIDE_PREFIX_LIVELINESS_KEY: &str = "asv-twins/alive/{vessel}";
 
-/// How a point ends.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Ending {
-    /// Stop the daemon as `twind` does on a signal (it drains its queues),
-    /// collect its counters, close the sessions.
-    Graceful,
-    /// Leave everything running (the caller exits the process at once): a
-    /// saturated daemon would take minutes to drain queues nobody measures.
-    Abandon,
-}
-
 /// Latency figures, nanoseconds.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct Latency {
@@ -191,7 +183,7 @@ impl Latency {
     }
 }
 
-/// What the daemon counted (graceful ending only).
+/// What the daemon counted (once it has drained, see [`DRAIN_LIMIT`]).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct DaemonCounters {
     /// Messages routed to vessel tasks.
@@ -273,7 +265,8 @@ pub struct PointResult {
     pub actuators_bytes_mean: f64,
     /// Mean measured payload received (fault, or raw fix), bytes.
     pub received_bytes_mean: f64,
-    /// The daemon's own counters (daemon path, graceful ending).
+    /// The daemon's own counters (daemon path; none when it did not drain
+    /// within [`DRAIN_LIMIT`]).
     pub daemon: Option<DaemonCounters>,
     /// Threads of the load generator (raw Zenoh: one per core, at most one
     /// per vessel; the daemon path: one).
@@ -349,7 +342,7 @@ pub fn vessel_id(v: usize) -> String {
     format!("b{v:05}")
 }
 
-fn vessel_index(id: &str) -> Option<usize> {
+pub(crate) fn vessel_index(id: &str) -> Option<usize> {
     id.strip_prefix('b')?.parse().ok()
 }
 
@@ -384,322 +377,6 @@ fn zenoh_config(listen: &[u16], connect: &[u16]) -> anyhow::Result<zenoh::Config
     Ok(c)
 }
 
-/// The window, in microseconds since the start; `i64::MAX` until set.
-struct Window {
-    start_us: AtomicI64,
-    end_us: AtomicI64,
-}
-
-impl Window {
-    fn new() -> Self {
-        Self {
-            start_us: AtomicI64::new(i64::MAX),
-            end_us: AtomicI64::new(i64::MAX),
-        }
-    }
-
-    fn contains(&self, t_us: i64) -> bool {
-        t_us >= self.start_us.load(Ordering::Acquire) && t_us < self.end_us.load(Ordering::Acquire)
-    }
-}
-
-#[derive(Debug, Clone, Copy)]
-struct VesselRx {
-    last_time_us: i64,
-    delivered: u32,
-}
-
-struct RxState {
-    vessels: Vec<VesselRx>,
-    heard: usize,
-    latency: Histogram,
-    delivered: u64,
-    received_in_window: u64,
-    repeats: u64,
-    unparsable: u64,
-    unparsable_first: Option<String>,
-    measured_bytes: u64,
-    measured_count: u64,
-    /// Publish to receive of the newest delivery, in the window or not, ns.
-    newest_latency_ns: i64,
-}
-
-impl RxState {
-    /// Counts a message that cannot be attributed, keeping the first for
-    /// the report (the key and up to 160 bytes of its payload).
-    fn count_unparsable(&mut self, why: &str, key: &str, payload: &[u8]) {
-        self.unparsable += 1;
-        if self.unparsable_first.is_none() {
-            let head = &payload[..payload.len().min(160)];
-            self.unparsable_first = Some(format!(
-                "{why}: {key} ({} B) {}",
-                payload.len(),
-                String::from_utf8_lossy(head)
-            ));
-        }
-    }
-}
-
-/// The subscriber's side: everything is allocated before the first message.
-struct Receiver {
-    path: Path,
-    start: Instant,
-    epoch_s: f64,
-    window: Arc<Window>,
-    /// After the grace period nothing more is counted.
-    closed: AtomicBool,
-    state: Mutex<RxState>,
-}
-
-/// The only field of a fault (or fix) payload the subscriber reads.
-#[derive(Deserialize)]
-struct Timed<'a> {
-    time: &'a str,
-}
-
-impl Receiver {
-    fn new(path: Path, n: usize, start: Instant, epoch_s: f64, window: Arc<Window>) -> Self {
-        Self {
-            path,
-            start,
-            epoch_s,
-            window,
-            closed: AtomicBool::new(false),
-            state: Mutex::new(RxState {
-                vessels: vec![
-                    VesselRx {
-                        last_time_us: i64::MIN,
-                        delivered: 0,
-                    };
-                    n
-                ],
-                heard: 0,
-                latency: Histogram::new(),
-                delivered: 0,
-                received_in_window: 0,
-                repeats: 0,
-                unparsable: 0,
-                unparsable_first: None,
-                measured_bytes: 0,
-                measured_count: 0,
-                newest_latency_ns: i64::MAX,
-            }),
-        }
-    }
-
-    fn on_sample(&self, sample: &Sample) {
-        let received_ns = self.start.elapsed().as_nanos() as i64;
-        if self.closed.load(Ordering::Acquire) {
-            return;
-        }
-        let key = sample.key_expr().as_str();
-        let mut parts = key.splitn(3, '/');
-        let (_, id, topic) = (parts.next(), parts.next(), parts.next());
-        let measured = match (self.path, topic) {
-            (Path::Daemon, Some("twin/fault")) | (Path::Raw, Some("gnss")) => true,
-            (Path::Raw, Some("actuators")) => false,
-            _ => {
-                self.lock().count_unparsable(
-                    "not a measured topic",
-                    key,
-                    &sample.payload().to_bytes(),
-                );
-                return;
-            }
-        };
-        if !measured {
-            return;
-        }
-        let bytes = sample.payload().to_bytes();
-        let index = id.and_then(vessel_index);
-        let sent_us = serde_json::from_slice::<Timed>(&bytes)
-            .ok()
-            .and_then(|t| parse_rfc3339(t.time).ok())
-            .map(|t| ((t - self.epoch_s) * 1e6).round() as i64);
-        let mut guard = self.lock();
-        let st = &mut *guard;
-        let (Some(v), Some(sent_us)) = (index, sent_us) else {
-            let why = if index.is_none() {
-                "no vessel index in the key"
-            } else {
-                "no readable time in the payload"
-            };
-            st.count_unparsable(why, key, &bytes);
-            return;
-        };
-        if v >= st.vessels.len() {
-            st.count_unparsable("vessel index out of range", key, &bytes);
-            return;
-        }
-        let vessel = &mut st.vessels[v];
-        st.measured_bytes += bytes.len() as u64;
-        st.measured_count += 1;
-        if sent_us <= vessel.last_time_us {
-            st.repeats += 1;
-            return;
-        }
-        let first = vessel.last_time_us == i64::MIN;
-        vessel.last_time_us = sent_us;
-        let in_window = self.window.contains(sent_us);
-        if in_window {
-            vessel.delivered += 1;
-        }
-        if first {
-            st.heard += 1;
-        }
-        let latency_ns = received_ns - sent_us * 1000;
-        st.newest_latency_ns = latency_ns;
-        if in_window {
-            st.delivered += 1;
-            st.latency.record(latency_ns.max(0) as u64);
-        }
-        if self.window.contains(received_ns / 1000) {
-            st.received_in_window += 1;
-        }
-    }
-
-    fn lock(&self) -> std::sync::MutexGuard<'_, RxState> {
-        // A panic while holding the lock cannot leave the counters
-        // inconsistent beyond one message: keep counting.
-        self.state.lock().unwrap_or_else(|e| e.into_inner())
-    }
-}
-
-/// What the generator shares with the main thread.
-#[derive(Default)]
-struct GenShared {
-    stop: AtomicBool,
-    fixes_in_window: AtomicU64,
-    actuators_in_window: AtomicU64,
-    max_lag_us: AtomicU64,
-    /// The lag of the newest message, us (0 when it was not late).
-    lag_us: AtomicU64,
-    gnss_bytes: AtomicU64,
-    actuators_bytes: AtomicU64,
-    sent: AtomicU64,
-    errors: AtomicU64,
-}
-
-/// One of the generator's threads: it sends the messages of a contiguous
-/// share of the fleet.
-struct Generator {
-    session: zenoh::Session,
-    /// Per vessel of this share: the shaft-speed key, the GNSS key.
-    keys: Vec<[KeyExpr<'static>; 2]>,
-    /// The fleet index of the share's first vessel.
-    first_vessel: usize,
-    /// Seeds this thread's GNSS noise.
-    seed: u64,
-    fleet: Arc<Fleet>,
-    rate_hz: Option<f64>,
-    start: Instant,
-    epoch_s: f64,
-    window: Arc<Window>,
-    shared: Arc<GenShared>,
-}
-
-impl Generator {
-    fn now_us(&self) -> i64 {
-        self.start.elapsed().as_micros() as i64
-    }
-
-    /// A stamp for a message of a vessel whose last one on this topic was
-    /// stamped `last`: now, or one microsecond after `last` if the clock has
-    /// not moved (times must increase per vessel and topic).
-    fn stamp(&self, last: &mut i64) -> i64 {
-        let t = self.now_us().max(*last + 1);
-        *last = t;
-        t
-    }
-
-    /// Puts reliably, blocking while Zenoh's queues are full (as
-    /// `twin-replay`'s publishers, `CongestionControl::Block`).
-    fn put(&self, key: &KeyExpr<'static>, bytes: Vec<u8>) -> zenoh::Result<()> {
-        self.session
-            .put(key, bytes)
-            .congestion_control(CongestionControl::Block)
-            .wait()
-    }
-
-    /// Puts one encoded message stamped at `stamp_us` and counts it: its
-    /// bytes, whether its stamp lies in the window, or an error (encoding
-    /// or putting).
-    fn put_counted<E>(
-        &self,
-        key: &KeyExpr<'static>,
-        encoded: Result<Vec<u8>, E>,
-        stamp_us: i64,
-        bytes_sent: &AtomicU64,
-        sent_in_window: &AtomicU64,
-    ) {
-        let s = &self.shared;
-        let Ok(bytes) = encoded else {
-            s.errors.fetch_add(1, Ordering::Relaxed);
-            return;
-        };
-        bytes_sent.fetch_add(bytes.len() as u64, Ordering::Relaxed);
-        if self.put(key, bytes).is_err() {
-            s.errors.fetch_add(1, Ordering::Relaxed);
-        }
-        if self.window.contains(stamp_us) {
-            sent_in_window.fetch_add(1, Ordering::Relaxed);
-        }
-    }
-
-    fn run(self) {
-        let n = self.keys.len();
-        let mut rng = SplitMix64::new(self.seed);
-        let mut last = vec![[i64::MIN + 1; 2]; n];
-        let begin_us = self.now_us();
-        let per_s = self.rate_hz.map(|r| r * n as f64);
-        let s = &self.shared;
-        let mut i: u64 = 0;
-        while !s.stop.load(Ordering::Relaxed) {
-            let v = (i % n as u64) as usize;
-            if let Some(per_s) = per_s {
-                let due_us = begin_us + (i as f64 * 1e6 / per_s) as i64;
-                let now = self.now_us();
-                if due_us > now {
-                    s.lag_us.store(0, Ordering::Relaxed);
-                    std::thread::sleep(Duration::from_micros((due_us - now) as u64));
-                } else {
-                    let lag = (now - due_us) as u64;
-                    s.lag_us.store(lag, Ordering::Relaxed);
-                    s.max_lag_us.fetch_max(lag, Ordering::Relaxed);
-                }
-            }
-            // Shaft speeds first, then the fix, each stamped just before
-            // it is encoded. The load goes on after the window (through the
-            // grace period) until the main thread says stop: the window's
-            // last fixes are delivered under the same load as the others.
-            let a_us = self.stamp(&mut last[v][0]);
-            let t = self.epoch_s + a_us as f64 * 1e-6;
-            let shafts = self.fleet.shafts(t, &mut rng);
-            self.put_counted(
-                &self.keys[v][0],
-                encode_actuators(&ActuatorCommand::Speeds(shafts), false),
-                a_us,
-                &s.actuators_bytes,
-                &s.actuators_in_window,
-            );
-            let g_us = self.stamp(&mut last[v][1]);
-            let t = self.epoch_s + g_us as f64 * 1e-6;
-            let fix = self
-                .fleet
-                .fix(self.first_vessel + v, t, g_us as f64 * 1e-6, &mut rng);
-            self.put_counted(
-                &self.keys[v][1],
-                encode_gnss(&fix, false),
-                g_us,
-                &s.gnss_bytes,
-                &s.fixes_in_window,
-            );
-            s.sent.fetch_add(1, Ordering::Relaxed);
-            i += 1;
-        }
-    }
-}
-
 async fn wait_matching(p: &Publisher<'_>, within: Duration) -> anyhow::Result<()> {
     let deadline = Instant::now() + within;
     loop {
@@ -724,11 +401,510 @@ fn zerr(what: &str) -> impl FnOnce(zenoh::Error) -> anyhow::Error + '_ {
     move |e| anyhow::anyhow!("{what}: {e}")
 }
 
-/// Runs one point. `Ending::Abandon` leaves the daemon, the sessions and
-/// the runtime running (leaked): call it only in a process that exits next.
-pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> {
+/// How long the daemon may take to drain its queues once told to stop. A
+/// daemon saturated at the window's end can hold minutes of queued work
+/// nobody measures: past this, its counters are not reported and the point
+/// ends without them.
+pub const DRAIN_LIMIT: Duration = Duration::from_secs(15);
+
+/// How long each Zenoh session may take to close, and the runtime to stop
+/// its remaining tasks. Closing a session that has declared tens of
+/// thousands of keys walks them all; past this the point ends anyway.
+pub const CLOSE_LIMIT: Duration = Duration::from_secs(10);
+
+/// How long the generator's threads may take to see the stop and return
+/// (a put blocked on a saturated path waits for room).
+pub const GENERATOR_STOP_LIMIT: Duration = Duration::from_secs(10);
+
+/// The runtime, the Zenoh sessions and the daemon of one point.
+struct Rig {
+    /// The daemon's runtime: tokio's multi-threaded scheduler with a worker
+    /// per core, as `twind`'s `#[tokio::main]` has.
+    rt: tokio::runtime::Runtime,
+    /// The daemon's session (daemon path only; it listens).
+    daemon: Option<zenoh::Session>,
+    /// The generator's session (connects).
+    generator: zenoh::Session,
+    /// The subscriber's session (connects on the daemon path, listens on
+    /// raw Zenoh).
+    subscriber: zenoh::Session,
+    /// Stops the daemon.
+    cancel: CancellationToken,
+    /// The daemon's run, once started.
+    daemon_task: Option<tokio::task::JoinHandle<anyhow::Result<twind::RunSummary>>>,
+}
+
+impl Rig {
+    /// The runtime and the three sessions (two on raw Zenoh), linked on a
+    /// free loopback port.
+    fn open(path: Path) -> anyhow::Result<Self> {
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(crate::machine::cores())
+            .thread_name("twind-rt")
+            .enable_all()
+            .build()
+            .context("building the daemon's runtime")?;
+        let port = free_port()?;
+        let open = |listen: &[u16], connect: &[u16]| -> anyhow::Result<zenoh::Session> {
+            let config = zenoh_config(listen, connect)?;
+            rt.block_on(async { zenoh::open(config).await })
+                .map_err(|e| anyhow::anyhow!("opening a Zenoh session: {e}"))
+        };
+        let (daemon, generator, subscriber) = match path {
+            Path::Daemon => {
+                let daemon = open(&[port], &[])?;
+                (Some(daemon), open(&[], &[port])?, open(&[], &[port])?)
+            }
+            Path::Raw => {
+                let subscriber = open(&[port], &[])?;
+                (None, open(&[], &[port])?, subscriber)
+            }
+        };
+        Ok(Self {
+            rt,
+            daemon,
+            generator,
+            subscriber,
+            cancel: CancellationToken::new(),
+            daemon_task: None,
+        })
+    }
+
+    /// Starts twind on the daemon's session (daemon path).
+    fn start_daemon(&mut self, settings: &twind::settings::Settings) {
+        if let Some(session) = &self.daemon {
+            self.daemon_task = Some(self.rt.spawn(twind::run(twind::RunConfig::new(
+                settings.clone(),
+                session.clone(),
+                self.cancel.clone(),
+            ))));
+        }
+    }
+
+    /// Waits until the generator's session sees the subscriber and, on the
+    /// daemon's path, the daemon's session sees the fault subscriber before
+    /// the first vessel task declares its keys.
+    fn wait_until_matched(
+        &self,
+        first_gnss: &KeyExpr<'static>,
+        keys: &KeySpace,
+    ) -> anyhow::Result<()> {
+        self.rt.block_on(async {
+            probe(&self.generator, first_gnss.clone()).await?;
+            if let Some(d) = &self.daemon {
+                let fault = keys.twin_fault(&VesselId::new(&vessel_id(0))?);
+                probe(d, KeyExpr::try_from(fault).map_err(zerr("a fault key"))?).await?;
+            }
+            anyhow::Ok(())
+        })
+    }
+
+    /// Stops the daemon (it drains its queues, at most [`DRAIN_LIMIT`]),
+    /// closes the sessions (each at most [`CLOSE_LIMIT`]) and the runtime:
+    /// decide, tell, wait, and the sessions last. Returns the daemon's
+    /// counters when it drained in time.
+    fn shut_down(self) -> anyhow::Result<Option<DaemonCounters>> {
+        let Self {
+            rt,
+            daemon,
+            generator,
+            subscriber,
+            cancel,
+            daemon_task,
+        } = self;
+        cancel.cancel();
+        let counters = rt.block_on(async {
+            let summary = match daemon_task {
+                Some(task) => match tokio::time::timeout(DRAIN_LIMIT, task).await {
+                    Ok(joined) => Some(joined.context("the daemon's task failed")??),
+                    Err(_) => {
+                        eprintln!(
+                            "twin-bench: the daemon did not drain within {DRAIN_LIMIT:?}; its counters are not reported"
+                        );
+                        None
+                    }
+                },
+                None => None,
+            };
+            for s in [Some(&generator), Some(&subscriber), daemon.as_ref()]
+                .into_iter()
+                .flatten()
+            {
+                if tokio::time::timeout(CLOSE_LIMIT, s.close()).await.is_err() {
+                    eprintln!("twin-bench: a Zenoh session did not close within {CLOSE_LIMIT:?}");
+                }
+            }
+            anyhow::Ok(summary.as_ref().map(DaemonCounters::of))
+        })?;
+        rt.shutdown_timeout(CLOSE_LIMIT);
+        Ok(counters)
+    }
+}
+
+/// Declares a publisher on `key`, waits until it has a subscriber, and
+/// undeclares it.
+async fn probe(session: &zenoh::Session, key: KeyExpr<'static>) -> anyhow::Result<()> {
+    let probe = session
+        .declare_publisher(key)
+        .await
+        .map_err(zerr("declaring the probe"))?;
+    wait_matching(&probe, Duration::from_secs(20)).await?;
+    probe
+        .undeclare()
+        .await
+        .map_err(zerr("undeclaring the probe"))
+}
+
+impl DaemonCounters {
+    /// The daemon's counters over every vessel and its own refusals.
+    fn of(summary: &twind::RunSummary) -> Self {
+        let mut c = DaemonCounters {
+            routed: summary.routed,
+            ..DaemonCounters::default()
+        };
+        for counters in summary
+            .vessels
+            .values()
+            .chain(std::iter::once(&summary.refused))
+        {
+            for (k, v) in counters.accepted() {
+                *c.accepted.entry(k).or_default() += v;
+            }
+            for (k, v) in &counters.rejected {
+                *c.rejected.entry(k.clone()).or_default() += v;
+            }
+        }
+        c
+    }
+}
+
+/// Every vessel's keys, as the generator puts on them (`[actuators, gnss]`)
+/// and as the subscriber receives on them (daemon path: `twin/fault`).
+///
+/// On the daemon's path the generator puts through its session on each
+/// vessel's key, declared to that session (`declare_keyexpr`, not announced
+/// when declared) so that its routing finds a node with a cached route, as
+/// the daemon declares its own (see twind's `vessel.rs`): with Zenoh 1.10 a
+/// key that is not a node is routed by a walk over every node under `asv/`,
+/// each vessel's liveliness token among them, and one session standing in
+/// for N vessels would pay that N times over. Not one declared publisher per
+/// key, as `twin-replay` has in its own session: 2 N publishers in one
+/// session cost O(N^2) to declare in Zenoh 1.10 (an artefact of one process
+/// standing in for N vessels, each of which would have its own session with
+/// two publishers). The subscriber, standing for a program that watches the
+/// fleet, declares the keys it receives on to its own session for the same
+/// reason (docs/deploy.md advises it for such programs).
+///
+/// Raw Zenoh has no tokens, so no per-vessel node for an undeclared key's
+/// routing to walk: its keys stay strings, as a plain Zenoh program's would.
+/// Declaring them costs O(N^2) too (the session searches its declared keys
+/// one by one): 4 N declarations at 40,000 vessels took longer than a point
+/// may.
+struct VesselKeys {
+    sent: Vec<[KeyExpr<'static>; 2]>,
+    /// Held until the point ends.
+    _received: Vec<KeyExpr<'static>>,
+}
+
+impl VesselKeys {
+    fn declare(rig: &Rig, path: Path, keys: &KeySpace, n: usize) -> anyhow::Result<Self> {
+        let declare = |session: &zenoh::Session, k: String| -> anyhow::Result<KeyExpr<'static>> {
+            match path {
+                Path::Daemon => session
+                    .declare_keyexpr(k)
+                    .wait()
+                    .map_err(zerr("declaring a vessel's key")),
+                Path::Raw => KeyExpr::try_from(k).map_err(zerr("a vessel's key")),
+            }
+        };
+        let mut sent = Vec::with_capacity(n);
+        let mut received = Vec::with_capacity(n);
+        for v in 0..n {
+            let id = VesselId::new(&vessel_id(v))?;
+            sent.push([
+                declare(&rig.generator, keys.actuators(&id))?,
+                declare(&rig.generator, keys.gnss(&id))?,
+            ]);
+            if path == Path::Daemon {
+                received.push(declare(&rig.subscriber, keys.twin_fault(&id))?);
+            }
+        }
+        Ok(Self {
+            sent,
+            _received: received,
+        })
+    }
+}
+
+/// The load generator's threads and what they share with this one.
+struct Load {
+    threads: Vec<JoinHandle<()>>,
+    shared: Arc<GenShared>,
+}
+
+impl Load {
+    /// Starts the generator. Raw Zenoh: one thread per core (each with a
+    /// contiguous share of the fleet, all through the one session), since
+    /// one thread alone cannot load Zenoh to its limit. The daemon path: one
+    /// thread, which uses under a third of a core there, while a second one
+    /// through the same session cost about 8 % of a core more in contention
+    /// (at 5,000 vessels x 10 Hz): CPU taken from the daemon.
+    fn start(
+        spec: &PointSpec,
+        session: &zenoh::Session,
+        mut keys_left: Vec<[KeyExpr<'static>; 2]>,
+        fleet: Fleet,
+        clock: &Clock,
+    ) -> anyhow::Result<Self> {
+        let n = keys_left.len();
+        let threads = match spec.path {
+            Path::Raw => std::thread::available_parallelism().map_or(1, |c| c.get()),
+            Path::Daemon => 1,
+        };
+        let share = n.div_ceil(threads.clamp(1, n));
+        let fleet = Arc::new(fleet);
+        let shared = Arc::new(GenShared::default());
+        let mut handles = Vec::new();
+        while !keys_left.is_empty() {
+            let k = handles.len();
+            let rest = keys_left.split_off(share.min(keys_left.len()));
+            let generator = Generator {
+                session: session.clone(),
+                keys: std::mem::replace(&mut keys_left, rest),
+                first_vessel: k * share,
+                seed: 0x7717_b0a7 + k as u64,
+                fleet: fleet.clone(),
+                rate_hz: spec.rate_hz,
+                start: clock.start,
+                epoch_s: clock.epoch_s,
+                window: clock.window.clone(),
+                shared: shared.clone(),
+            };
+            handles.push(
+                std::thread::Builder::new()
+                    .name(format!("bench-gen-{k}"))
+                    .spawn(move || generator.run())
+                    .context("starting the generator")?,
+            );
+        }
+        Ok(Self {
+            threads: handles,
+            shared,
+        })
+    }
+
+    /// The generator's lag behind its schedule now, ms.
+    fn lag_ms(&self) -> f64 {
+        self.shared.lag_us.load(Ordering::Relaxed) as f64 / 1e3
+    }
+
+    /// Tells the threads to stop.
+    fn stop(&self) {
+        self.shared.stop.store(true, Ordering::Relaxed);
+    }
+
+    /// Waits for the threads to stop, at most [`GENERATOR_STOP_LIMIT`] (a
+    /// thread still blocked then is left to end with the process).
+    fn join(self) -> anyhow::Result<()> {
+        self.stop();
+        let deadline = Instant::now() + GENERATOR_STOP_LIMIT;
+        while self.threads.iter().any(|t| !t.is_finished()) && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        for t in self.threads {
+            if t.is_finished() {
+                t.join()
+                    .map_err(|_| anyhow::anyhow!("the generator panicked"))?;
+            } else {
+                eprintln!(
+                    "twin-bench: a generator thread did not stop within {GENERATOR_STOP_LIMIT:?}"
+                );
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The point's time base: the instant every stamp counts from, the Unix
+/// second it stands for, and the measurement window on it.
+struct Clock {
+    start: Instant,
+    epoch_s: f64,
+    window: Arc<Window>,
+}
+
+impl Clock {
+    fn now_us(&self) -> i64 {
+        self.start.elapsed().as_micros() as i64
+    }
+
+    /// Sleeps until `t_us` on this clock.
+    fn sleep_until(&self, t_us: i64) {
+        let now = self.now_us();
+        if t_us > now {
+            std::thread::sleep(Duration::from_micros((t_us - now) as u64));
+        }
+    }
+}
+
+/// How the warm-up went.
+struct WarmUp {
+    used_s: f64,
+    capped: bool,
+    vessels_heard_at_start: usize,
+    generator_lag_at_start_ms: f64,
+}
+
+/// Warm-up: at least `warmup_s`, and until every vessel has been heard from
+/// (every daemon task started and publishing) and, paced, the generator is
+/// back on its schedule and what it sends comes back promptly (the start-up
+/// backlog has drained; [`caught_up`]), up to [`WARMUP_CAP`] times.
+fn warm_up(spec: &PointSpec, receiver: &Receiver, load: &Load) -> anyhow::Result<WarmUp> {
+    let warm_start = Instant::now();
+    let cap = Duration::from_secs_f64(spec.warmup_s * WARMUP_CAP);
+    let least = Duration::from_secs_f64(spec.warmup_s);
+    let mut on_schedule = 0;
+    let capped = loop {
+        let elapsed = warm_start.elapsed();
+        let (heard, newest_latency_ns) = {
+            let st = receiver.lock();
+            (st.heard, st.newest_latency_ns)
+        };
+        let latency_ms = newest_latency_ns as f64 / 1e6;
+        on_schedule = if caught_up(spec.rate_hz.is_some(), load.lag_ms(), latency_ms) {
+            on_schedule + 1
+        } else {
+            0
+        };
+        if elapsed >= least && heard >= spec.vessels && on_schedule >= CAUGHT_UP_SAMPLES {
+            break false;
+        }
+        if elapsed >= cap {
+            break true;
+        }
+        anyhow::ensure!(
+            !load.threads.iter().any(JoinHandle::is_finished),
+            "the generator stopped during the warm-up"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let warm = WarmUp {
+        used_s: warm_start.elapsed().as_secs_f64(),
+        capped,
+        vessels_heard_at_start: receiver.lock().heard,
+        generator_lag_at_start_ms: load.lag_ms(),
+    };
+    load.shared.max_lag_us.store(0, Ordering::Relaxed);
+    Ok(warm)
+}
+
+/// What the process did during the window.
+struct WindowFigures {
+    window_s: f64,
+    cpu_pct_of_core: Option<f64>,
+    cpu_pct_by_group: BTreeMap<String, f64>,
+    rss_end_kib: Option<u64>,
+    forecasts: u64,
+}
+
+/// Opens the window, sleeps through it and the grace period, and closes
+/// the receiver: the process's CPU and RSS over the window, and the
+/// forecasts computed in it.
+fn measure_window(spec: &PointSpec, clock: &Clock, receiver: &Receiver) -> WindowFigures {
+    let threads_before = procstat::thread_ticks();
+    let cpu_before = procstat::process_ticks();
+    let forecasts_before = twind::forecast::computed_total();
+    let w0 = clock.now_us();
+    let w1 = w0 + (spec.window_s * 1e6) as i64;
+    clock.window.start_us.store(w0, Ordering::Release);
+    clock.window.end_us.store(w1, Ordering::Release);
+    clock.sleep_until(w1);
+    let forecasts = twind::forecast::computed_total() - forecasts_before;
+    let cpu_after = procstat::process_ticks();
+    let threads_after = procstat::thread_ticks();
+    let rss_end_kib = procstat::rss_kib();
+    let window_s = (w1 - w0) as f64 * 1e-6;
+    clock.sleep_until(w1 + (spec.grace_s * 1e6) as i64);
+    receiver.closed.store(true, Ordering::Release);
+    let pct = |ticks: u64| ticks as f64 / procstat::TICKS_PER_S / window_s * 100.0;
+    WindowFigures {
+        window_s,
+        cpu_pct_of_core: match (cpu_before, cpu_after) {
+            (Some(b), Some(a)) => Some(pct(a.saturating_sub(b))),
+            _ => None,
+        },
+        cpu_pct_by_group: procstat::group_ticks(&threads_before, &threads_after)
+            .into_iter()
+            .map(|(g, t)| (g, pct(t)))
+            .collect(),
+        rss_end_kib,
+        forecasts,
+    }
+}
+
+/// Everything one point measured, before the daemon's counters.
+fn point_result(
+    spec: &PointSpec,
+    circle: &Circle,
+    warm: &WarmUp,
+    w: WindowFigures,
+    receiver: &Receiver,
+    load: &Load,
+    rss_base_kib: Option<u64>,
+) -> PointResult {
     let n = spec.vessels;
-    anyhow::ensure!((1..=99_999).contains(&n), "1 to 99,999 vessels");
+    let shared = &load.shared;
+    let window_s = w.window_s;
+    let fixes_sent = shared.fixes_in_window.load(Ordering::Relaxed);
+    let sent_total = shared.sent.load(Ordering::Relaxed).max(1) as f64;
+    let st = receiver.lock();
+    let per_vessel_delivered: Vec<u32> = st.vessels.iter().map(|v| v.delivered).collect();
+    PointResult {
+        spec: *spec,
+        circle_speed_mps: circle.speed_mps,
+        circle_radius_m: circle.radius_m(),
+        circle_rpm: circle.rpm,
+        warmup_used_s: warm.used_s,
+        warmup_capped: warm.capped,
+        generator_lag_at_start_ms: spec.rate_hz.map(|_| warm.generator_lag_at_start_ms),
+        window_s,
+        fixes_sent,
+        actuators_sent: shared.actuators_in_window.load(Ordering::Relaxed),
+        planned_fixes_per_s: spec.rate_hz.map(|r| r * n as f64),
+        offered_fixes_per_s: fixes_sent as f64 / window_s,
+        received_per_s: st.received_in_window as f64 / window_s,
+        delivered: st.delivered,
+        repeats: st.repeats,
+        unparsable: st.unparsable,
+        unparsable_first: st.unparsable_first.clone(),
+        vessels_delivered: per_vessel_delivered.iter().filter(|&&d| d > 0).count(),
+        vessels_heard: st.heard,
+        vessels_heard_at_start: warm.vessels_heard_at_start,
+        per_vessel_delivered,
+        latency: Latency::of(&st.latency),
+        generator_max_lag_ms: spec
+            .rate_hz
+            .map(|_| shared.max_lag_us.load(Ordering::Relaxed) as f64 / 1e3),
+        cpu_pct_of_core: w.cpu_pct_of_core,
+        cpu_pct_by_group: w.cpu_pct_by_group,
+        rss_base_kib,
+        rss_end_kib: w.rss_end_kib,
+        gnss_bytes_mean: shared.gnss_bytes.load(Ordering::Relaxed) as f64 / sent_total,
+        actuators_bytes_mean: shared.actuators_bytes.load(Ordering::Relaxed) as f64 / sent_total,
+        received_bytes_mean: if st.measured_count > 0 {
+            st.measured_bytes as f64 / st.measured_count as f64
+        } else {
+            0.0
+        },
+        daemon: None,
+        generator_threads: load.threads.len(),
+        forecasts_per_s: matches!(spec.path, Path::Daemon).then(|| w.forecasts as f64 / window_s),
+    }
+}
+
+/// Checks what a point asks for.
+fn validate(spec: &PointSpec) -> anyhow::Result<()> {
+    anyhow::ensure!((1..=99_999).contains(&spec.vessels), "1 to 99,999 vessels");
     anyhow::ensure!(
         spec.window_s > 0.0 && spec.warmup_s >= 0.0 && spec.grace_s >= 0.0,
         "window, warm-up and grace must be positive"
@@ -736,396 +912,86 @@ pub fn measure(spec: &PointSpec, ending: Ending) -> anyhow::Result<PointResult> 
     if let Some(r) = spec.rate_hz {
         anyhow::ensure!(r > 0.0 && r.is_finite(), "the rate must be positive");
     }
+    Ok(())
+}
+
+/// Runs one point: sets up the sessions (and the daemon), declares the
+/// keys, starts the load, warms up, measures one window, and shuts
+/// everything down in order (see [`Rig::shut_down`]).
+pub fn measure(spec: &PointSpec) -> anyhow::Result<PointResult> {
+    validate(spec)?;
     let circle = Circle::from_simulator(FLEET_SPEED_MPS)?;
-    let fleet = Fleet::new(circle, n)?;
+    let fleet = Fleet::new(circle, spec.vessels)?;
     let keys = KeySpace::new("asv")?;
     let settings = bench_settings(spec.vessel_liveliness, spec.liveliness_outside_prefix)?;
-
-    // The daemon's runtime: tokio's multi-threaded scheduler with a worker
-    // per core, as `twind`'s `#[tokio::main]` has.
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(crate::machine::cores())
-        .thread_name("twind-rt")
-        .enable_all()
-        .build()
-        .context("building the daemon's runtime")?;
-
-    let port = free_port()?;
-    let (daemon, generator_session, subscriber_session) = rt.block_on(async {
-        let open = |listen: &[u16], connect: &[u16]| {
-            let config = zenoh_config(listen, connect);
-            async move {
-                zenoh::open(config?)
-                    .await
-                    .map_err(|e| anyhow::anyhow!("opening a Zenoh session: {e}"))
-            }
-        };
-        anyhow::Ok(match spec.path {
-            Path::Daemon => {
-                let daemon = open(&[port], &[]).await?;
-                (
-                    Some(daemon),
-                    open(&[], &[port]).await?,
-                    open(&[], &[port]).await?,
-                )
-            }
-            Path::Raw => {
-                let sub = open(&[port], &[]).await?;
-                (None, open(&[], &[port]).await?, sub)
-            }
-        })
-    })?;
-
-    let start = Instant::now();
-    let epoch_s = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .context("the system clock is before 1970")?
-        .as_secs() as f64;
-    let window = Arc::new(Window::new());
-    let receiver = Arc::new(Receiver::new(spec.path, n, start, epoch_s, window.clone()));
-
-    let cancel = CancellationToken::new();
-    let daemon_task = daemon.as_ref().map(|session| {
-        rt.spawn(twind::run(twind::RunConfig::new(
-            settings.clone(),
-            session.clone(),
-            cancel.clone(),
-        )))
-    });
-    let sub_key = match spec.path {
-        Path::Daemon => keys.all_vessels(Topic::TwinFault),
-        Path::Raw => twind::input_key_expr(&settings),
+    let mut rig = Rig::open(spec.path)?;
+    let clock = Clock {
+        start: Instant::now(),
+        epoch_s: SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .context("the system clock is before 1970")?
+            .as_secs() as f64,
+        window: Arc::new(Window::new()),
     };
-    let rx = receiver.clone();
-    let subscriber = subscriber_session
-        .declare_subscriber(sub_key.clone())
-        .callback(move |s| rx.on_sample(&s))
-        .wait()
-        .map_err(zerr("subscribing"))?;
-
-    // On the daemon's path the generator puts through its session on each
-    // vessel's key, declared to that session (`declare_keyexpr`, not
-    // announced when declared) so that its routing finds a node with a cached
-    // route, as the daemon declares its own (see twind's `vessel.rs`): with
-    // Zenoh 1.10 a key that is not a node is routed by a walk over every
-    // node under `asv/`, each vessel's liveliness token among them, and one
-    // session standing in for N vessels would pay that N times over. Not one
-    // declared publisher per key, as `twin-replay` has in its own session:
-    // 2 N publishers in one session cost O(N^2) to declare in Zenoh 1.10 (an
-    // artefact of one process standing in for N vessels, each of which
-    // would have its own session with two publishers). The subscriber,
-    // standing for a program that watches the fleet, declares the keys it
-    // receives on to its own session for the same reason (docs/deploy.md
-    // advises it for such programs).
-    //
-    // Raw Zenoh has no tokens, so no per-vessel node for an undeclared key's
-    // routing to walk: its keys stay strings, as a plain Zenoh program's
-    // would. Declaring them costs O(N^2) too (the session searches its
-    // declared keys one by one): 4 N declarations at 40,000 vessels took
-    // longer than a point may.
-    let declare = |session: &zenoh::Session, k: String| -> anyhow::Result<KeyExpr<'static>> {
-        match spec.path {
-            Path::Daemon => session
-                .declare_keyexpr(k)
-                .wait()
-                .map_err(zerr("declaring a vessel's key")),
-            Path::Raw => KeyExpr::try_from(k).map_err(zerr("a vessel's key")),
-        }
-    };
-    let mut vessel_keys = Vec::with_capacity(n);
-    let mut received_keys = Vec::with_capacity(n);
-    for v in 0..n {
-        let id = VesselId::new(&vessel_id(v))?;
-        vessel_keys.push([
-            declare(&generator_session, keys.actuators(&id))?,
-            declare(&generator_session, keys.gnss(&id))?,
-        ]);
-        if spec.path == Path::Daemon {
-            received_keys.push(declare(&subscriber_session, keys.twin_fault(&id))?);
-        }
-    }
-    rt.block_on(async {
-        let probe = generator_session
-            .declare_publisher(vessel_keys[0][1].clone())
-            .await
-            .map_err(zerr("declaring the probe"))?;
-        wait_matching(&probe, Duration::from_secs(20)).await?;
-        probe
-            .undeclare()
-            .await
-            .map_err(zerr("undeclaring the probe"))?;
-        if let Some(d) = &daemon {
-            // The daemon's session must see the fault subscriber before the
-            // first vessel task declares its publishers.
-            let probe = d
-                .declare_publisher(keys.twin_fault(&VesselId::new(&vessel_id(0))?))
-                .await
-                .map_err(zerr("declaring the probe"))?;
-            wait_matching(&probe, Duration::from_secs(20)).await?;
-            probe
-                .undeclare()
-                .await
-                .map_err(zerr("undeclaring the probe"))?;
-        }
-        anyhow::Ok(())
-    })?;
+    let receiver = Arc::new(Receiver::new(
+        spec.path,
+        spec.vessels,
+        clock.start,
+        clock.epoch_s,
+        clock.window.clone(),
+    ));
+    rig.start_daemon(&settings);
+    let subscriber = subscribe(&rig, spec.path, &keys, &settings, receiver.clone())?;
+    let vessel_keys = VesselKeys::declare(&rig, spec.path, &keys, spec.vessels)?;
+    rig.wait_until_matched(&vessel_keys.sent[0][1], &keys)?;
 
     let rss_base_kib = procstat::rss_kib();
-    let shared = Arc::new(GenShared::default());
-    // Raw Zenoh: one generator thread per core (each with a contiguous share
-    // of the fleet, all through the one session), since one thread alone
-    // cannot load Zenoh to its limit. The daemon path: one thread, which
-    // uses under a third of a core there, while a second one through the
-    // same session cost about 8 % of a core more in contention (measured at
-    // 5,000 vessels x 10 Hz, 2026-11-22): CPU taken from the daemon.
-    let threads = match spec.path {
-        Path::Raw => std::thread::available_parallelism().map_or(1, |c| c.get()),
-        Path::Daemon => 1,
-    };
-    let share = n.div_ceil(threads.clamp(1, n));
-    let fleet = Arc::new(fleet);
-    let mut gen_threads = Vec::new();
-    let mut keys_left = vessel_keys;
-    while !keys_left.is_empty() {
-        let k = gen_threads.len();
-        let rest = keys_left.split_off(share.min(keys_left.len()));
-        let generator = Generator {
-            session: generator_session.clone(),
-            keys: std::mem::replace(&mut keys_left, rest),
-            first_vessel: k * share,
-            seed: 0x7717_b0a7 + k as u64,
-            fleet: fleet.clone(),
-            rate_hz: spec.rate_hz,
-            start,
-            epoch_s,
-            window: window.clone(),
-            shared: shared.clone(),
-        };
-        gen_threads.push(
-            std::thread::Builder::new()
-                .name(format!("bench-gen-{k}"))
-                .spawn(move || generator.run())
-                .context("starting the generator")?,
-        );
-    }
-
-    // Warm-up: at least `warmup_s`, and until every vessel has been heard
-    // from (every daemon task started and publishing) and, paced, the
-    // generator is back on its schedule and what it sends comes back
-    // promptly (the start-up backlog has drained; `caught_up`), up to
-    // WARMUP_CAP times.
-    let generator_threads = gen_threads.len();
-    let warm_start = Instant::now();
-    let cap = Duration::from_secs_f64(spec.warmup_s * WARMUP_CAP);
-    let least = Duration::from_secs_f64(spec.warmup_s);
-    let mut on_schedule = 0;
-    let warmup_capped = loop {
-        let elapsed = warm_start.elapsed();
-        let (heard, newest_latency_ns) = {
-            let st = receiver.lock();
-            (st.heard, st.newest_latency_ns)
-        };
-        let lag_ms = shared.lag_us.load(Ordering::Relaxed) as f64 / 1e3;
-        let latency_ms = newest_latency_ns as f64 / 1e6;
-        on_schedule = if caught_up(spec.rate_hz.is_some(), lag_ms, latency_ms) {
-            on_schedule + 1
-        } else {
-            0
-        };
-        if elapsed >= least && heard >= n && on_schedule >= CAUGHT_UP_SAMPLES {
-            break false;
-        }
-        if elapsed >= cap {
-            break true;
-        }
-        if gen_threads.iter().any(|t| t.is_finished()) {
-            anyhow::bail!("the generator stopped during the warm-up");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    let warmup_used_s = warm_start.elapsed().as_secs_f64();
-    let vessels_heard_at_start = receiver.lock().heard;
-    let generator_lag_at_start_ms = shared.lag_us.load(Ordering::Relaxed) as f64 / 1e3;
-    shared.max_lag_us.store(0, Ordering::Relaxed);
-
-    // The window.
-    let threads_before = procstat::thread_ticks();
-    let cpu_before = procstat::process_ticks();
-    let forecasts_before = twind::forecast::computed_total();
-    let w0 = start.elapsed().as_micros() as i64;
-    let w1 = w0 + (spec.window_s * 1e6) as i64;
-    window.start_us.store(w0, Ordering::Release);
-    window.end_us.store(w1, Ordering::Release);
-    let sleep_until = |t_us: i64| {
-        let now = start.elapsed().as_micros() as i64;
-        if t_us > now {
-            std::thread::sleep(Duration::from_micros((t_us - now) as u64));
-        }
-    };
-    sleep_until(w1);
-    let forecasts_in_window = twind::forecast::computed_total() - forecasts_before;
-    let cpu_after = procstat::process_ticks();
-    let threads_after = procstat::thread_ticks();
-    let rss_end_kib = procstat::rss_kib();
-    let window_s = (w1 - w0) as f64 * 1e-6;
-    sleep_until(w1 + (spec.grace_s * 1e6) as i64);
-    receiver.closed.store(true, Ordering::Release);
-    shared.stop.store(true, Ordering::Relaxed);
-
-    let pct = |ticks: u64| ticks as f64 / procstat::TICKS_PER_S / window_s * 100.0;
-    let cpu_pct_of_core = match (cpu_before, cpu_after) {
-        (Some(b), Some(a)) => Some(pct(a.saturating_sub(b))),
-        _ => None,
-    };
-    let cpu_pct_by_group = procstat::group_ticks(&threads_before, &threads_after)
-        .into_iter()
-        .map(|(g, t)| (g, pct(t)))
-        .collect();
-
-    let fixes_sent = shared.fixes_in_window.load(Ordering::Relaxed);
-    let actuators_sent = shared.actuators_in_window.load(Ordering::Relaxed);
-    let sent_total = shared.sent.load(Ordering::Relaxed).max(1) as f64;
-    let errors = shared.errors.load(Ordering::Relaxed);
+    let load = Load::start(
+        spec,
+        &rig.generator,
+        vessel_keys.sent.clone(),
+        fleet,
+        &clock,
+    )?;
+    let warm = warm_up(spec, &receiver, &load)?;
+    let window = measure_window(spec, &clock, &receiver);
+    load.stop();
+    let result = point_result(spec, &circle, &warm, window, &receiver, &load, rss_base_kib);
+    let errors = load.shared.errors.load(Ordering::Relaxed);
+    load.join()?;
     anyhow::ensure!(errors == 0, "{errors} messages could not be encoded or put");
-    let (per_vessel_delivered, rx_summary) = {
-        let st = receiver.lock();
-        (
-            st.vessels.iter().map(|v| v.delivered).collect::<Vec<_>>(),
-            (
-                st.heard,
-                st.delivered,
-                st.received_in_window,
-                st.repeats,
-                st.unparsable,
-                st.unparsable_first.clone(),
-                Latency::of(&st.latency),
-                if st.measured_count > 0 {
-                    st.measured_bytes as f64 / st.measured_count as f64
-                } else {
-                    0.0
-                },
-            ),
-        )
-    };
-    let (
-        heard,
-        delivered,
-        received_in_window,
-        repeats,
-        unparsable,
-        unparsable_first,
-        latency,
-        received_bytes_mean,
-    ) = rx_summary;
-    let result_without_daemon = PointResult {
-        spec: *spec,
-        circle_speed_mps: circle.speed_mps,
-        circle_radius_m: circle.radius_m(),
-        circle_rpm: circle.rpm,
-        warmup_used_s,
-        warmup_capped,
-        generator_lag_at_start_ms: spec.rate_hz.map(|_| generator_lag_at_start_ms),
-        window_s,
-        fixes_sent,
-        actuators_sent,
-        planned_fixes_per_s: spec.rate_hz.map(|r| r * n as f64),
-        offered_fixes_per_s: fixes_sent as f64 / window_s,
-        received_per_s: received_in_window as f64 / window_s,
-        delivered,
-        repeats,
-        unparsable,
-        unparsable_first,
-        vessels_delivered: per_vessel_delivered.iter().filter(|&&d| d > 0).count(),
-        vessels_heard: heard,
-        vessels_heard_at_start,
-        per_vessel_delivered,
-        latency,
-        generator_max_lag_ms: spec
-            .rate_hz
-            .map(|_| shared.max_lag_us.load(Ordering::Relaxed) as f64 / 1e3),
-        cpu_pct_of_core,
-        cpu_pct_by_group,
-        rss_base_kib,
-        rss_end_kib,
-        gnss_bytes_mean: shared.gnss_bytes.load(Ordering::Relaxed) as f64 / sent_total,
-        actuators_bytes_mean: shared.actuators_bytes.load(Ordering::Relaxed) as f64 / sent_total,
-        received_bytes_mean,
-        daemon: None,
-        generator_threads,
-        forecasts_per_s: matches!(spec.path, Path::Daemon)
-            .then(|| forecasts_in_window as f64 / window_s),
-    };
+    subscriber
+        .undeclare()
+        .wait()
+        .map_err(zerr("undeclaring the subscriber"))?;
+    let daemon = rig.shut_down()?;
+    Ok(PointResult { daemon, ..result })
+}
 
-    match ending {
-        Ending::Abandon => {
-            // Dropping these would wait for a saturated daemon to drain.
-            std::mem::forget(gen_threads);
-            std::mem::forget(subscriber);
-            std::mem::forget(daemon_task);
-            std::mem::forget(daemon);
-            std::mem::forget(generator_session);
-            std::mem::forget(subscriber_session);
-            std::mem::forget(rt);
-            Ok(result_without_daemon)
-        }
-        Ending::Graceful => {
-            for t in gen_threads {
-                t.join()
-                    .map_err(|_| anyhow::anyhow!("the generator panicked"))?;
-            }
-            drop(subscriber);
-            cancel.cancel();
-            let counters = rt.block_on(async {
-                let summary = match daemon_task {
-                    Some(task) => Some(
-                        tokio::time::timeout(Duration::from_secs(60), task)
-                            .await
-                            .context("the daemon did not stop within 60 s")?
-                            .context("the daemon's task failed")??,
-                    ),
-                    None => None,
-                };
-                for s in [
-                    Some(&generator_session),
-                    Some(&subscriber_session),
-                    daemon.as_ref(),
-                ]
-                .into_iter()
-                .flatten()
-                {
-                    s.close().await.map_err(zerr("closing a session"))?;
-                }
-                anyhow::Ok(summary.map(|summary| {
-                    let mut c = DaemonCounters {
-                        routed: summary.routed,
-                        ..DaemonCounters::default()
-                    };
-                    for counters in summary
-                        .vessels
-                        .values()
-                        .chain(std::iter::once(&summary.refused))
-                    {
-                        for (k, v) in counters.accepted() {
-                            *c.accepted.entry(k).or_default() += v;
-                        }
-                        for (k, v) in &counters.rejected {
-                            *c.rejected.entry(k.clone()).or_default() += v;
-                        }
-                    }
-                    c
-                }))
-            })?;
-            Ok(PointResult {
-                daemon: counters,
-                ..result_without_daemon
-            })
-        }
-    }
+/// The subscriber of what the point measures: faults on the daemon's path,
+/// the fixes themselves on raw Zenoh.
+fn subscribe(
+    rig: &Rig,
+    path: Path,
+    keys: &KeySpace,
+    settings: &twind::settings::Settings,
+    receiver: Arc<Receiver>,
+) -> anyhow::Result<Subscriber<()>> {
+    let key = match path {
+        Path::Daemon => keys.all_vessels(Topic::TwinFault),
+        Path::Raw => twind::input_key_expr(settings),
+    };
+    rig.subscriber
+        .declare_subscriber(key)
+        .callback(move |s| receiver.on_sample(&s))
+        .wait()
+        .map_err(zerr("subscribing"))
 }
 
 #[cfg(test)]
 mod tests {
-    use super::{CAUGHT_UP_LAG_MS, Path, Receiver, Window, caught_up};
+    use super::super::receiver::{Receiver, Window};
+    use super::{CAUGHT_UP_LAG_MS, Path, caught_up};
     use std::sync::Arc;
     use std::time::Instant;
 

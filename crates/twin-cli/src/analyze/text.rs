@@ -26,6 +26,7 @@ impl Analysis {
     }
 
     /// The human summary.
+    #[allow(clippy::too_many_lines)] // Split by the estimator restructuring.
     pub fn to_text(&self) -> String {
         use std::fmt::Write;
         let mut s = String::new();

@@ -413,6 +413,7 @@ fn near_edge(v: f64, lo: f64, hi: f64) -> bool {
     v <= lo + margin || v >= hi - margin
 }
 
+#[allow(clippy::too_many_lines)] // One arm per cause of the catalogue.
 fn fit(ctx: &Ctx<'_>, accepted: &Hypothesis, cause: Cause) -> Option<Fitted> {
     let acc = &ctx.config.acceptance;
     let mut hyp = *accepted;
@@ -616,6 +617,7 @@ fn evidence(before: &ResidualSummary, after: &ResidualSummary) -> Vec<String> {
 }
 
 /// Diagnoses a prepared log.
+#[allow(clippy::too_many_lines)] // The greedy search's steps, read top to bottom.
 pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     let base = if prep.has_propellers {
         BaseModel::Kinetic

@@ -11,7 +11,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::{CourseGate, Learnt, LocalFix};
+use super::{CourseGate, Learnt, LocalFix, Surroundings};
 use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
 use crate::model::Measurement;
 use crate::models::effects::SensorEffects;
@@ -319,6 +319,41 @@ impl KineticBase {
         }
     }
 
+    /// Puts what was learnt of the surroundings (the current, the heading
+    /// sensor's offset) into a prior, where the terms estimate them.
+    fn restore_surroundings(
+        &self,
+        learnt: &Surroundings,
+        x0: &mut State,
+        p0: &mut SMatrix<f64, STATES, STATES>,
+    ) {
+        let slots = [
+            (idx::CURRENT_NORTH, self.options.current == Term::Free),
+            (idx::CURRENT_EAST, self.options.current == Term::Free),
+            (idx::HEADING_BIAS, self.options.heading_bias == Term::Free),
+        ];
+        let values = [
+            learnt.current_mps[0],
+            learnt.current_mps[1],
+            learnt.heading_bias_rad,
+        ];
+        for (a, (ia, free_a)) in slots.iter().enumerate() {
+            if !free_a {
+                continue;
+            }
+            x0[*ia] = values[a];
+            for (b, (ib, free_b)) in slots.iter().enumerate() {
+                if *free_b {
+                    p0[(*ia, *ib)] = learnt.covariance[a][b];
+                }
+            }
+        }
+        if self.options.current == Term::Free {
+            let c = learnt.covariance;
+            p0[(idx::U, idx::U)] = 0.3f64.powi(2) + c[0][0].max(c[1][1]);
+        }
+    }
+
     /// The first estimate from a fix: position as measured; heading from the
     /// heading sensor (less its offset, if the effects have one), else the
     /// course; surge speed from the speed over ground (less its scale); sway
@@ -378,33 +413,8 @@ impl KineticBase {
             current_variance,
             bias_variance,
         ]));
-        // What was learnt of the surroundings, where they are estimated.
         if let Some(learnt) = restored.and_then(|r| r.surroundings) {
-            let slots = [
-                (idx::CURRENT_NORTH, self.options.current == Term::Free),
-                (idx::CURRENT_EAST, self.options.current == Term::Free),
-                (idx::HEADING_BIAS, self.options.heading_bias == Term::Free),
-            ];
-            let values = [
-                learnt.current_mps[0],
-                learnt.current_mps[1],
-                learnt.heading_bias_rad,
-            ];
-            for (a, (ia, free_a)) in slots.iter().enumerate() {
-                if !free_a {
-                    continue;
-                }
-                x0[*ia] = values[a];
-                for (b, (ib, free_b)) in slots.iter().enumerate() {
-                    if *free_b {
-                        p0[(*ia, *ib)] = learnt.covariance[a][b];
-                    }
-                }
-            }
-            if self.options.current == Term::Free {
-                let c = learnt.covariance;
-                p0[(idx::U, idx::U)] = 0.3f64.powi(2) + c[0][0].max(c[1][1]);
-            }
+            self.restore_surroundings(&learnt, &mut x0, &mut p0);
         }
         let bias_variance = p0[(idx::HEADING_BIAS, idx::HEADING_BIAS)];
         if fix.heading_rad.is_some() {

@@ -416,6 +416,108 @@ impl State {
     }
 }
 
+/// PGN 127250, vessel heading: true, or magnetic corrected by deviation and
+/// variation.
+fn vessel_heading(data: &[u8]) -> Result<Option<Measurement>, RejectReason> {
+    let heading = compass(unsigned(data, 8, 16, 1e-4), "heading")?;
+    let deviation = signed(data, 24, 16, 1e-4);
+    let variation = signed(data, 40, 16, 1e-4);
+    let Some(h) = heading else {
+        return Ok(None);
+    };
+    let true_heading = match bits(data, 56, 2) {
+        Some(0) => h,
+        Some(1) => {
+            let v = variation.ok_or(RejectReason::MagneticWithoutVariation)?;
+            h + deviation.unwrap_or(0.0) + v
+        }
+        _ => return Err(RejectReason::UnknownReference { field: "heading" }),
+    };
+    Ok(Some(Measurement::Heading {
+        heading_rad: wrap_two_pi(true_heading),
+    }))
+}
+
+/// PGN 127488, engine parameters (rapid): one shaft's speed.
+fn engine_speed(data: &[u8]) -> Result<Option<Measurement>, RejectReason> {
+    let Some(rpm) = unsigned(data, 8, 16, 0.25) else {
+        return Ok(None);
+    };
+    let side = match bits(data, 0, 8) {
+        Some(0) => Side::Port,
+        Some(1) => Side::Starboard,
+        other => {
+            return Err(RejectReason::UnknownPropeller {
+                number: other.unwrap_or(255) as u32,
+            });
+        }
+    };
+    Ok(Some(Measurement::PropellerSpeed {
+        side,
+        radps: rpm * RADPS_PER_RPM,
+    }))
+}
+
+/// PGN 129026, COG and SOG (rapid): a magnetic or unknown course is dropped
+/// and rejected after the speed is kept.
+fn course_speed(data: &[u8]) -> Result<(Option<Measurement>, Option<RejectReason>), RejectReason> {
+    let sog = speed(unsigned(data, 32, 16, 0.01), "sog")?;
+    let mut cog = compass(unsigned(data, 16, 16, 1e-4), "cog")?;
+    let mut late_rejection = None;
+    if cog.is_some() {
+        match bits(data, 8, 2) {
+            Some(0) => {}
+            Some(1) => {
+                cog = None;
+                late_rejection = Some(RejectReason::MagneticCourse);
+            }
+            _ => {
+                cog = None;
+                late_rejection = Some(RejectReason::UnknownReference { field: "cog" });
+            }
+        }
+    }
+    let measurement = (cog.is_some() || sog.is_some()).then_some(Measurement::CourseSpeed {
+        cog_rad: cog,
+        sog_mps: sog,
+    });
+    Ok((measurement, late_rejection))
+}
+
+/// PGN 129029, GNSS position data: position, altitude, method and HDOP.
+fn gnss_position(data: &[u8]) -> Result<Option<Measurement>, RejectReason> {
+    let method = match bits(data, 252, 4) {
+        Some(0) => {
+            return Err(RejectReason::NotValid {
+                what: "129029 method",
+            });
+        }
+        Some(code) => FixMethod::from_code(code),
+        None => None,
+    };
+    let position = lat_lon(signed(data, 56, 64, 1e-16), signed(data, 120, 64, 1e-16))?;
+    let altitude_m = signed(data, 184, 64, 1e-6);
+    let hdop = signed(data, 272, 16, 0.01).filter(|h| *h > 0.0);
+    Ok(position.map(|(lat_deg, lon_deg)| Measurement::Position {
+        lat_deg,
+        lon_deg,
+        hdop,
+        method,
+        altitude_m,
+    }))
+}
+
+/// Furuno's PGN 130842 gyro rates (roll, pitch, yaw).
+fn furuno_gyro_rates(data: &[u8]) -> Option<Measurement> {
+    let rate = |offset| signed(data, offset, 32, 1e-3).map(f64::to_radians);
+    let (roll, pitch, yaw) = (rate(120), rate(152), rate(184));
+    (roll.is_some() || pitch.is_some() || yaw.is_some()).then_some(Measurement::GyroRates {
+        roll_radps: roll,
+        pitch_radps: pitch,
+        yaw_radps: yaw,
+    })
+}
+
 /// Decodes one message of a PGN the reader reads, or counts it as ignored.
 fn decode_pgn(
     pgn: u32,
@@ -429,22 +531,7 @@ fn decode_pgn(
     match pgn {
         127_250 => {
             need(pgn, data, 8)?;
-            let heading = compass(unsigned(data, 8, 16, 1e-4), "heading")?;
-            let deviation = signed(data, 24, 16, 1e-4);
-            let variation = signed(data, 40, 16, 1e-4);
-            if let Some(h) = heading {
-                let true_heading = match bits(data, 56, 2) {
-                    Some(0) => h,
-                    Some(1) => {
-                        let v = variation.ok_or(RejectReason::MagneticWithoutVariation)?;
-                        h + deviation.unwrap_or(0.0) + v
-                    }
-                    _ => return Err(RejectReason::UnknownReference { field: "heading" }),
-                };
-                measurement = Some(Measurement::Heading {
-                    heading_rad: wrap_two_pi(true_heading),
-                });
-            }
+            measurement = vessel_heading(data)?;
         }
         127_251 => {
             need(pgn, data, 5)?;
@@ -466,21 +553,7 @@ fn decode_pgn(
         }
         127_488 => {
             need(pgn, data, 3)?;
-            if let Some(rpm) = unsigned(data, 8, 16, 0.25) {
-                let side = match bits(data, 0, 8) {
-                    Some(0) => Side::Port,
-                    Some(1) => Side::Starboard,
-                    other => {
-                        return Err(RejectReason::UnknownPropeller {
-                            number: other.unwrap_or(255) as u32,
-                        });
-                    }
-                };
-                measurement = Some(Measurement::PropellerSpeed {
-                    side,
-                    radps: rpm * RADPS_PER_RPM,
-                });
-            }
+            measurement = engine_speed(data)?;
         }
         128_259 => {
             need(pgn, data, 3)?;
@@ -500,49 +573,11 @@ fn decode_pgn(
         }
         129_026 => {
             need(pgn, data, 6)?;
-            let sog = speed(unsigned(data, 32, 16, 0.01), "sog")?;
-            let mut cog = compass(unsigned(data, 16, 16, 1e-4), "cog")?;
-            if cog.is_some() {
-                match bits(data, 8, 2) {
-                    Some(0) => {}
-                    Some(1) => {
-                        cog = None;
-                        late_rejection = Some(RejectReason::MagneticCourse);
-                    }
-                    _ => {
-                        cog = None;
-                        late_rejection = Some(RejectReason::UnknownReference { field: "cog" });
-                    }
-                }
-            }
-            if cog.is_some() || sog.is_some() {
-                measurement = Some(Measurement::CourseSpeed {
-                    cog_rad: cog,
-                    sog_mps: sog,
-                });
-            }
+            (measurement, late_rejection) = course_speed(data)?;
         }
         129_029 => {
             need(pgn, data, 36)?;
-            let method = match bits(data, 252, 4) {
-                Some(0) => {
-                    return Err(RejectReason::NotValid {
-                        what: "129029 method",
-                    });
-                }
-                Some(code) => FixMethod::from_code(code),
-                None => None,
-            };
-            let position = lat_lon(signed(data, 56, 64, 1e-16), signed(data, 120, 64, 1e-16))?;
-            let altitude_m = signed(data, 184, 64, 1e-6);
-            let hdop = signed(data, 272, 16, 0.01).filter(|h| *h > 0.0);
-            measurement = position.map(|(lat_deg, lon_deg)| Measurement::Position {
-                lat_deg,
-                lon_deg,
-                hdop,
-                method,
-                altitude_m,
-            });
+            measurement = gnss_position(data)?;
         }
         130_577 => {
             need(pgn, data, 14)?;
@@ -563,15 +598,7 @@ fn decode_pgn(
                 return Ok(());
             }
             need(pgn, data, 27)?;
-            let rate = |offset| signed(data, offset, 32, 1e-3).map(f64::to_radians);
-            let (roll, pitch, yaw) = (rate(120), rate(152), rate(184));
-            if roll.is_some() || pitch.is_some() || yaw.is_some() {
-                measurement = Some(Measurement::GyroRates {
-                    roll_radps: roll,
-                    pitch_radps: pitch,
-                    yaw_radps: yaw,
-                });
-            }
+            measurement = furuno_gyro_rates(data);
         }
         _ => {
             emit.stats.ignored += 1;

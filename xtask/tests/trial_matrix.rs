@@ -1,12 +1,12 @@
 //! The seed's sea-trial matrix re-run in the simulator with known truth
-//! (issue: "the Otter simulator and the sea-trial matrix"): every cell of
-//! 4 propeller sets and 8 losses x 2 paths x 3 noise seeds, with and without
-//! a 0.3 m/s current. The bars are the issue's: on S-manoeuvres the extended
-//! twin's final estimate within 0.03 of the true loss on each propeller,
-//! healthy propellers below 0.03, and the right side named every time.
+//! (docs/accuracy.md): every cell of 4 propeller sets and 8 losses x 2
+//! paths x 3 noise seeds, with and without a 0.3 m/s current. The bars are
+//! the project's accuracy targets: on S-manoeuvres the extended twin's
+//! final estimate within 0.03 of the true loss on each propeller, healthy
+//! propellers below 0.03, and the right side named every time.
 
-use twin_cli::trials::{CellResult, TrialPath, matrix, run_cell};
 use twin_core::decision::ThrusterStatus;
+use xtask::trials::{CellResult, TrialPath, matrix, run_cell};
 
 fn run(path: TrialPath, current_mps: f64) -> Vec<CellResult> {
     matrix(3, current_mps)

@@ -3,17 +3,17 @@
 //! run from the recorded inputs, compare with the truth; and the calibration
 //! of the extended twin's forecast bands.
 //!
-//! Two facts shape these tests (see the README's results): the seed method's
+//! Two facts shape these tests (docs/accuracy.md): the seed method's
 //! "recorded inputs" are derived from the GNSS track over the horizon itself,
 //! so its prediction is fed the future it predicts; and the Otter's hull is
 //! directionally unstable in open loop (the Munk moment), so the extended
 //! twin's open-loop forecast through the recorded propeller speeds amplifies
 //! any heading error over tens of seconds. Its bands widen accordingly.
 
-use twin_cli::trials::{
+use twin_core::twin::TwinConfig;
+use xtask::trials::{
     Cell, TrialPath, forecast_coverage, loss_sets, prediction_comparison, seed_sets,
 };
-use twin_core::twin::TwinConfig;
 
 /// The forecast's 1-sigma band holds the truth 60-75 % of the time and the
 /// 2-sigma band 90-98 %, over the S-manoeuvre cells in harbour water (12

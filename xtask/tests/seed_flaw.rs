@@ -1,11 +1,11 @@
-//! The seed's flaw, with numbers (MODEL.md section 5, ERRATA 8): with inputs
+//! The seed's flaw, with numbers (docs/model.md sections 5 and 9): with inputs
 //! derived from the same GNSS track the filter observes, a loss of thrust is
 //! already inside the inputs, so the seed's method cannot see it. A 20 % port
 //! loss and no loss give the same estimates (and a healthy run can show a
 //! higher peak "fault" than a lossy one). The extended twin, driven by the
 //! propeller speeds, separates the two by the loss itself.
 
-use twin_cli::trials::{Cell, PropellerSet, TrialPath, run_cell};
+use xtask::trials::{Cell, PropellerSet, TrialPath, run_cell};
 
 #[test]
 fn a_twenty_percent_port_loss_is_invisible_to_the_seed_method() {
@@ -51,7 +51,7 @@ fn a_twenty_percent_port_loss_is_invisible_to_the_seed_method() {
         // What the seed's per-thruster values follow, for the record: on
         // this simulator (white GNSS velocity noise) they follow the error of
         // the derived inputs weakly and the turns not at all; the seed's
-        // peaks in the turns are not reproduced here (see the issue notes).
+        // peaks in the turns are not reproduced here (docs/known-issues.md).
         for r in [&h, &b] {
             println!(
                 "    correlation of the step-4 values with the derived inputs' error {:.2}, with |yaw rate| {:.2}",

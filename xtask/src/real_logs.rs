@@ -1,5 +1,6 @@
-//! `twin report real-logs`: `twin analyze` over every log of a directory
-//! (by default `tests/fixtures/real/`), as one markdown table for the README:
+//! `cargo xtask real-logs`: `twin analyze` over every log of a directory
+//! (by default `tests/fixtures/real/`), as one markdown table for
+//! `docs/accuracy.md`:
 //! log, format, span, fixes used, rejected, innovation RMS of position, mean
 //! NIS per degree of freedom, the seed method's input faults and the water
 //! current where the extended twin ran.
@@ -13,7 +14,7 @@ use std::path::{Path, PathBuf};
 
 use twin_wire::read::OpenError;
 
-use crate::analyze::{Analysis, AnalyzeError, AnalyzeOptions, analyze_path, duration_text};
+use twin_cli::analyze::{Analysis, AnalyzeError, AnalyzeOptions, analyze_path, duration_text};
 
 /// The real logs' directory, relative to the workspace root.
 pub const DEFAULT_DIR: &str = "tests/fixtures/real";

@@ -1,4 +1,4 @@
-//! `twin report diagnose-real` over the real logs of `tests/fixtures/real`:
+//! `cargo xtask diagnose-real` over the real logs of `tests/fixtures/real`:
 //! every log gets a row; on `aava-n2k.data` the current the twin names
 //! agrees with the instrument's own set and drift (PGN 130577, an
 //! independent estimate the diagnosis never reads) within 0.1 m/s as a
@@ -7,12 +7,12 @@
 
 use std::path::Path;
 
-use twin_cli::diagnose_real::{LogOutcome, diagnose_dir, instrument_comparison, markdown};
 use twin_core::diagnose::DiagnoseConfig;
+use xtask::diagnose_real::{LogOutcome, diagnose_dir, instrument_comparison, markdown};
 
 #[test]
 fn the_real_logs_are_diagnosed_and_the_current_matches_the_instrument() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/fixtures/real");
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/real");
     let config = DiagnoseConfig {
         threads: 2,
         ..DiagnoseConfig::default()

@@ -1,6 +1,6 @@
-//! `twin report diagnose-real`: `twin diagnose` over every log of a
-//! directory (by default `tests/fixtures/real/`), as markdown for the
-//! README: per log what the nominal model gets wrong on held-out data, the
+//! `cargo xtask diagnose-real`: `twin diagnose` over every log of a
+//! directory (by default `tests/fixtures/real/`), as markdown tables for
+//! `docs/accuracy.md`: per log what the nominal model gets wrong on held-out data, the
 //! causes named with their parameters and uncertainty, the gain each brings
 //! on held-out data, and, where a log carries the instrument's own set and
 //! drift (NMEA 2000 PGN 130577), the current estimate beside it with their
@@ -18,8 +18,8 @@ use twin_wire::SourceChoice;
 use twin_wire::outputs::FindingJson;
 use twin_wire::read::OpenError;
 
-use crate::diagnose::{DiagnoseError, DiagnoseReport, diagnose_path};
 use crate::real_logs::files_by_name;
+use twin_cli::diagnose::{DiagnoseError, DiagnoseReport, diagnose_path};
 
 /// Why the report failed.
 #[derive(Debug, thiserror::Error)]
@@ -222,18 +222,23 @@ pub fn markdown(logs: &[(String, LogOutcome)]) -> String {
         })
         .map(|(name, r, (est, inst, diff, ddir))| {
             format!(
-                "- {name}: the twin's current {:.2} m/s toward {:.0}° against the instrument's own set and drift (PGN 130577, mean of {} messages) {:.2} m/s toward {:.0}°: difference {diff:.2} m/s as a vector, {:+.2} m/s in speed, {ddir:+.0}° in direction.",
+                "| {name} | {:.2} m/s toward {:.0}° | {:.2} m/s toward {:.0}° | {} | {diff:.2} m/s | {:+.2} m/s | {ddir:+.0}° |",
                 est[0],
                 est[1],
-                r.instrument.as_ref().map_or(0, |i| i.samples),
                 inst[0],
                 inst[1],
+                r.instrument.as_ref().map_or(0, |i| i.samples),
                 est[0] - inst[0],
             )
         })
         .collect();
     if !comparisons.is_empty() {
         let _ = writeln!(s);
+        let _ = writeln!(
+            s,
+            "| log | the twin's current | the instrument's set and drift (PGN 130577, mean) | messages | difference as a vector | in speed | in direction |"
+        );
+        let _ = writeln!(s, "|---|---|---|---:|---:|---:|---:|");
         for c in comparisons {
             let _ = writeln!(s, "{c}");
         }

@@ -14,6 +14,7 @@ use twin_core::decision::ThrusterStatus;
 use twin_core::geodesy::{LocalFrame, wrap_pi};
 use twin_core::models::kinematic::KinematicInput;
 use twin_core::models::otter_twin::ShaftSpeeds;
+use twin_core::sample::PropellerSpeeds;
 use twin_core::twin::{FaultSource, TwinConfig, VesselTwin};
 use twin_sim::{CurrentSpec, Scenario, SensorEvent, SimRun};
 
@@ -42,9 +43,9 @@ impl TrialPath {
     /// currents are set per cell).
     fn base_scenario(self) -> &'static str {
         match self {
-            TrialPath::Straight => include_str!("../../../config/scenarios/straight_new-new.toml"),
+            TrialPath::Straight => include_str!("../../config/scenarios/straight_new-new.toml"),
             TrialPath::SManoeuvre => {
-                include_str!("../../../config/scenarios/s-manoeuvre_new-new.toml")
+                include_str!("../../config/scenarios/s-manoeuvre_new-new.toml")
             }
         }
     }
@@ -364,7 +365,7 @@ pub fn correlation(x: &[f64], y: &[f64]) -> f64 {
 /// truth. RMSE per state `[north, east, speed, course]`, in metres, m/s and
 /// radians, and as a percentage of the true state's range over the window
 /// (the seed does not say what its percentages are of; the range is the
-/// strictest reading we could think of).
+/// strictest reading).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PredictionComparison {
     /// Horizon, s.
@@ -441,17 +442,9 @@ pub fn prediction_comparison(seed: u64, horizon_s: f64, calm_water: bool) -> Pre
         }
     }
     for f in &fixes {
-        let in_interval: Vec<_> = props
-            .iter()
-            .filter(|p| p.time_s > t_prev && p.time_s <= f.time_s)
-            .collect();
-        let n = in_interval.len().max(1) as f64;
         kinetic_inputs.push((
             f.time_s - t_prev,
-            ShaftSpeeds {
-                port_radps: in_interval.iter().map(|p| p.port_radps).sum::<f64>() / n,
-                starboard_radps: in_interval.iter().map(|p| p.starboard_radps).sum::<f64>() / n,
-            },
+            mean_shaft_speeds(&props, t_prev, f.time_s),
         ));
         let u = match (f.sog_mps, f.cog_rad) {
             (Some(s), Some(c)) => deriver.push(f.time_s, s, wrap_pi(c)).unwrap_or_default(),
@@ -466,46 +459,8 @@ pub fn prediction_comparison(seed: u64, horizon_s: f64, calm_water: bool) -> Pre
     // twins' frames start at their first, noisy, fix).
     let sim_frame = LocalFrame::new(run.origin).expect("valid origin");
 
-    let score = |points: &[twin_core::twin::ForecastPoint]| {
-        let mut sq = [0.0f64; 4];
-        let mut lo = [f64::MAX; 4];
-        let mut hi = [f64::MIN; 4];
-        let mut n = 0.0f64;
-        let mut course_unwrapped = None::<f64>;
-        for p in points {
-            let Some(tr) = run
-                .truth
-                .iter()
-                .find(|t| (t.time_s - p.time_s).abs() < 1e-6)
-            else {
-                continue;
-            };
-            let c = match course_unwrapped {
-                None => tr.cog_rad,
-                Some(prev) => prev + wrap_pi(tr.cog_rad - prev),
-            };
-            course_unwrapped = Some(c);
-            let truth = [tr.north_m, tr.east_m, tr.sog_mps, c];
-            let local = sim_frame.to_local(p.position);
-            let err = [
-                local.north_m - tr.north_m,
-                local.east_m - tr.east_m,
-                p.sog_mps - tr.sog_mps,
-                wrap_pi(p.cog_rad - tr.cog_rad),
-            ];
-            for i in 0..4 {
-                sq[i] += err[i] * err[i];
-                lo[i] = lo[i].min(truth[i]);
-                hi[i] = hi[i].max(truth[i]);
-            }
-            n += 1.0;
-        }
-        let rmse = sq.map(|s| (s / n.max(1.0)).sqrt());
-        let pct = std::array::from_fn(|i| 100.0 * rmse[i] / (hi[i] - lo[i]).max(1e-9));
-        (rmse, pct)
-    };
-    let (seed_rmse, seed_rmse_pct) = score(&seed_points);
-    let (extended_rmse, extended_rmse_pct) = score(&kin_points);
+    let (seed_rmse, seed_rmse_pct) = score(&seed_points, &run, &sim_frame);
+    let (extended_rmse, extended_rmse_pct) = score(&kin_points, &run, &sim_frame);
     let extended_final_error_sigmas = kin_points
         .last()
         .and_then(|p| {
@@ -527,6 +482,65 @@ pub fn prediction_comparison(seed: u64, horizon_s: f64, calm_water: bool) -> Pre
         extended_rmse,
         extended_rmse_pct,
         extended_final_error_sigmas,
+    }
+}
+
+/// RMSE of forecast `points` against the truth of `run` per state `[north,
+/// east, speed, course]`, and as % of the true state's range over them.
+fn score(
+    points: &[twin_core::twin::ForecastPoint],
+    run: &SimRun,
+    sim_frame: &LocalFrame,
+) -> ([f64; 4], [f64; 4]) {
+    let mut sq = [0.0f64; 4];
+    let mut lo = [f64::MAX; 4];
+    let mut hi = [f64::MIN; 4];
+    let mut n = 0.0f64;
+    let mut course_unwrapped = None::<f64>;
+    for p in points {
+        let Some(tr) = run
+            .truth
+            .iter()
+            .find(|t| (t.time_s - p.time_s).abs() < 1e-6)
+        else {
+            continue;
+        };
+        let c = match course_unwrapped {
+            None => tr.cog_rad,
+            Some(prev) => prev + wrap_pi(tr.cog_rad - prev),
+        };
+        course_unwrapped = Some(c);
+        let truth = [tr.north_m, tr.east_m, tr.sog_mps, c];
+        let local = sim_frame.to_local(p.position);
+        let err = [
+            local.north_m - tr.north_m,
+            local.east_m - tr.east_m,
+            p.sog_mps - tr.sog_mps,
+            wrap_pi(p.cog_rad - tr.cog_rad),
+        ];
+        for i in 0..4 {
+            sq[i] += err[i] * err[i];
+            lo[i] = lo[i].min(truth[i]);
+            hi[i] = hi[i].max(truth[i]);
+        }
+        n += 1.0;
+    }
+    let rmse = sq.map(|s| (s / n.max(1.0)).sqrt());
+    let pct = std::array::from_fn(|i| 100.0 * rmse[i] / (hi[i] - lo[i]).max(1e-9));
+    (rmse, pct)
+}
+
+/// The mean of the measured shaft speeds in `(from_s, to_s]` (zero where
+/// there are none): the recorded input of one GNSS interval.
+fn mean_shaft_speeds(props: &[PropellerSpeeds], from_s: f64, to_s: f64) -> ShaftSpeeds {
+    let in_interval: Vec<_> = props
+        .iter()
+        .filter(|p| p.time_s > from_s && p.time_s <= to_s)
+        .collect();
+    let n = in_interval.len().max(1) as f64;
+    ShaftSpeeds {
+        port_radps: in_interval.iter().map(|p| p.port_radps).sum::<f64>() / n,
+        starboard_radps: in_interval.iter().map(|p| p.starboard_radps).sum::<f64>() / n,
     }
 }
 
@@ -563,17 +577,9 @@ pub fn forecast_coverage(
         };
         let mut inputs = Vec::new();
         for f in run.gnss_fixes().filter(|f| f.time_s > t_split) {
-            let in_interval: Vec<_> = props
-                .iter()
-                .filter(|p| p.time_s > t_prev && p.time_s <= f.time_s)
-                .collect();
-            let k = in_interval.len().max(1) as f64;
             inputs.push((
                 f.time_s - t_prev,
-                ShaftSpeeds {
-                    port_radps: in_interval.iter().map(|p| p.port_radps).sum::<f64>() / k,
-                    starboard_radps: in_interval.iter().map(|p| p.starboard_radps).sum::<f64>() / k,
-                },
+                mean_shaft_speeds(&props, t_prev, f.time_s),
             ));
             t_prev = f.time_s;
         }
@@ -624,21 +630,80 @@ fn mean_over<'a>(
     [sum[0] / n, sum[1] / n]
 }
 
-/// The results tables of the README, as markdown: the seed's published
-/// figures, the seed's method on this simulator, and the extended twin, for
-/// every cell of the matrix (means over the noise seeds), in calm-current and
-/// 0.3 m/s-current water, and the prediction comparison.
-pub fn markdown_report(seeds: u64) -> String {
+/// The seed's published peak for a propeller set on a path, `[port,
+/// starboard]`, as text; `-` for the sets the seed did not run.
+fn published_peak(path: TrialPath, set: &str) -> String {
+    SEED_TABLE_4_8
+        .iter()
+        .find(|(n, _, _)| *n == set)
+        .map(|(_, straight, s_man)| {
+            let v = if path == TrialPath::Straight {
+                straight
+            } else {
+                s_man
+            };
+            format!("[{:.2}, {:.2}]", v[1], v[0])
+        })
+        .unwrap_or_else(|| "-".to_string())
+}
+
+/// The largest error over the cells of `path` of the estimate `f` picks.
+fn worst_error(rs: &[CellResult], path: TrialPath, f: impl Fn(&CellResult) -> [f64; 2]) -> f64 {
+    rs.iter()
+        .filter(|r| r.cell.path == path)
+        .map(|r| {
+            let t = r.cell.set.losses();
+            let e = f(r);
+            (e[0] - t[0]).abs().max((e[1] - t[1]).abs())
+        })
+        .fold(0.0f64, f64::max)
+}
+
+/// One row of the matrix table: a path and a propeller set, means over the
+/// noise seeds, in still water and in the 0.3 m/s current.
+fn matrix_row(
+    path: TrialPath,
+    set: &PropellerSet,
+    still: &[CellResult],
+    current: &[CellResult],
+) -> Option<String> {
+    let pick = |rs: &[CellResult]| -> Vec<CellResult> {
+        rs.iter()
+            .filter(|r| r.cell.path == path && r.cell.set.name == set.name)
+            .copied()
+            .collect()
+    };
+    let s = pick(still);
+    let c = pick(current);
+    let first = s.first()?;
+    let pair = |v: [f64; 2], decimals: usize| format!("[{:.decimals$}, {:.decimals$}]", v[0], v[1]);
+    let status: Vec<&str> = first.extended.status.iter().map(|st| st.name()).collect();
+    Some(format!(
+        "| {} | {} | {} | {} | {} | {} | {} +- {} | {} | {} | {} |",
+        path.name(),
+        set.name,
+        pair(set.losses(), 2),
+        published_peak(path, set.name),
+        pair(mean_over(s.iter(), |r| r.seed_method.thruster_peak), 2),
+        pair(mean_over(s.iter(), |r| r.seed_method.input_faults), 2),
+        pair(mean_over(s.iter(), |r| r.extended.loss), 3),
+        pair(mean_over(s.iter(), |r| r.extended.sigma), 3),
+        status.join("/"),
+        pair(mean_over(c.iter(), |r| r.without_current.loss), 3),
+        pair(mean_over(c.iter(), |r| r.extended.loss), 3),
+    ))
+}
+
+/// The sea-trial matrix as markdown tables (`cargo xtask trials`): every
+/// cell (means over `seeds` noise seeds) with the seed's published peak, the
+/// seed's method and the extended twin, in still water and in a 0.3 m/s
+/// current; then the worst error over the S-manoeuvre cells.
+pub fn matrix_markdown(seeds: u64) -> String {
     use std::fmt::Write;
     let mut out = String::new();
     let still = matrix(seeds, 0.0).iter().map(run_cell).collect::<Vec<_>>();
     let current = matrix(seeds, 0.3).iter().map(run_cell).collect::<Vec<_>>();
     let sets: Vec<PropellerSet> = seed_sets(0.18).into_iter().chain(loss_sets()).collect();
-
-    let _ = writeln!(
-        out,
-        "Seed's sea-trial matrix in the simulator (harbour-water disturbance, 5 Hz GNSS; means over {seeds} noise seeds). Losses and estimates are `[port, starboard]`.\n"
-    );
     let _ = writeln!(
         out,
         "| path | set (stb/port) | true loss | seed published peak | seed method peak (step 4) | seed method input faults [a, r] | extended twin | status | without current state, 0.3 m/s current | extended twin, 0.3 m/s current |"
@@ -646,83 +711,40 @@ pub fn markdown_report(seeds: u64) -> String {
     let _ = writeln!(out, "|---|---|---|---|---|---|---|---|---|---|");
     for path in TrialPath::BOTH {
         for set in &sets {
-            let pick = |rs: &[CellResult]| -> Vec<CellResult> {
-                rs.iter()
-                    .filter(|r| r.cell.path == path && r.cell.set.name == set.name)
-                    .copied()
-                    .collect()
-            };
-            let s = pick(&still);
-            let c = pick(&current);
-            if s.is_empty() {
-                continue;
+            if let Some(row) = matrix_row(path, set, &still, &current) {
+                let _ = writeln!(out, "{row}");
             }
-            let published = SEED_TABLE_4_8
-                .iter()
-                .find(|(n, _, _)| *n == set.name)
-                .map(|(_, straight, s_man)| {
-                    let v = if path == TrialPath::Straight {
-                        straight
-                    } else {
-                        s_man
-                    };
-                    format!("[{:.2}, {:.2}]", v[1], v[0])
-                })
-                .unwrap_or_else(|| "-".to_string());
-            let peak = mean_over(s.iter(), |r| r.seed_method.thruster_peak);
-            let input = mean_over(s.iter(), |r| r.seed_method.input_faults);
-            let ext = mean_over(s.iter(), |r| r.extended.loss);
-            let sig = mean_over(s.iter(), |r| r.extended.sigma);
-            let status: Vec<&str> = s[0].extended.status.iter().map(|st| st.name()).collect();
-            let nc = mean_over(c.iter(), |r| r.without_current.loss);
-            let ec = mean_over(c.iter(), |r| r.extended.loss);
-            let _ = writeln!(
-                out,
-                "| {} | {} | [{:.2}, {:.2}] | {} | [{:.2}, {:.2}] | [{:.2}, {:.2}] | [{:.3}, {:.3}] +- [{:.3}, {:.3}] | {} | [{:.3}, {:.3}] | [{:.3}, {:.3}] |",
-                path.name(),
-                set.name,
-                set.port_loss,
-                set.starboard_loss,
-                published,
-                peak[0],
-                peak[1],
-                input[0],
-                input[1],
-                ext[0],
-                ext[1],
-                sig[0],
-                sig[1],
-                status.join("/"),
-                nc[0],
-                nc[1],
-                ec[0],
-                ec[1]
-            );
         }
     }
-    let worst = |rs: &[CellResult], path: TrialPath, f: &dyn Fn(&CellResult) -> [f64; 2]| {
-        rs.iter()
-            .filter(|r| r.cell.path == path)
-            .map(|r| {
-                let t = r.cell.set.losses();
-                let e = f(r);
-                (e[0] - t[0]).abs().max((e[1] - t[1]).abs())
-            })
-            .fold(0.0f64, f64::max)
-    };
-    let _ = writeln!(
-        out,
-        "\nWorst error over every S-manoeuvre cell and seed: extended twin {:.3} (no current), {:.3} (0.3 m/s current); without its current state {:.3} in the current. On straight lines the extended twin reports the losses as not excited (a shared loss and a current along the track look alike); what it can tell there is the port/starboard effectiveness ratio.\n",
-        worst(&still, TrialPath::SManoeuvre, &|r| r.extended.loss),
-        worst(&current, TrialPath::SManoeuvre, &|r| r.extended.loss),
-        worst(&current, TrialPath::SManoeuvre, &|r| r.without_current.loss),
-    );
+    let _ = writeln!(out);
+    let _ = writeln!(out, "| S-manoeuvres, every cell and seed | worst error |");
+    let _ = writeln!(out, "|---|---:|");
+    let p = TrialPath::SManoeuvre;
+    for (what, worst) in [
+        (
+            "extended twin, still water",
+            worst_error(&still, p, |r| r.extended.loss),
+        ),
+        (
+            "extended twin, 0.3 m/s current",
+            worst_error(&current, p, |r| r.extended.loss),
+        ),
+        (
+            "extended twin without its current state, 0.3 m/s current",
+            worst_error(&current, p, |r| r.without_current.loss),
+        ),
+    ] {
+        let _ = writeln!(out, "| {what} | {worst:.3} |");
+    }
+    out
+}
 
-    let _ = writeln!(
-        out,
-        "Prediction after calibration on the new/broken S-manoeuvre (the seed's Table 4.9), RMSE over the horizon, means over {seeds} seeds. The seed's published percentages (x, y, U, psi) are {:?} of an undocumented reference.\n",
-        SEED_TABLE_4_9_PCT
-    );
+/// Prediction after calibration as the seed's Table 4.9, as a markdown
+/// table (`cargo xtask prediction`): RMSE over each horizon, means over
+/// `seeds` noise seeds, in calm and in harbour water.
+pub fn prediction_markdown(seeds: u64) -> String {
+    use std::fmt::Write;
+    let mut out = String::new();
     let _ = writeln!(
         out,
         "| water | horizon | seed method RMSE [north m, east m, SOG m/s, COG rad] | extended twin RMSE |"
