@@ -218,6 +218,45 @@ pub mod wire {
         .await
     }
 
+    /// The time of a JSON input message (a fix or shaft speeds), s.
+    pub fn time_of(bytes: &[u8]) -> f64 {
+        let v: serde_json::Value = serde_json::from_slice(bytes).expect("a JSON message");
+        twin_wire::time::parse_rfc3339(v["time"].as_str().expect("a time")).expect("RFC 3339")
+    }
+
+    /// A JSON input message with its fields changed by `edit`.
+    pub fn edited(bytes: &[u8], edit: impl FnOnce(&mut serde_json::Value)) -> Vec<u8> {
+        let mut v: serde_json::Value = serde_json::from_slice(bytes).expect("a JSON message");
+        edit(&mut v);
+        serde_json::to_vec(&v).expect("JSON")
+    }
+
+    /// A JSON input message stamped `time_s` instead.
+    pub fn stamped(bytes: &[u8], time_s: f64) -> Vec<u8> {
+        edited(bytes, |v| {
+            v["time"] = twin_wire::time::format_rfc3339(time_s)
+                .expect("a time to format")
+                .into()
+        })
+    }
+
+    /// `msgs` with every time moved by `by_s`.
+    pub fn shifted(msgs: &[(&'static str, Vec<u8>)], by_s: f64) -> Messages {
+        msgs.iter()
+            .map(|(t, b)| (*t, stamped(b, time_of(b) + by_s)))
+            .collect()
+    }
+
+    /// The index of the `n`-th GNSS message of `msgs`.
+    pub fn nth_fix(msgs: &[(&'static str, Vec<u8>)], n: usize) -> usize {
+        msgs.iter()
+            .enumerate()
+            .filter(|(_, (t, _))| *t == "gnss")
+            .nth(n)
+            .expect("that many fixes")
+            .0
+    }
+
     /// Publishes a vessel's messages in order through `session`, once the
     /// daemon's subscription is visible.
     pub async fn publish(session: &zenoh::Session, vessel: &str, msgs: &[(&'static str, Vec<u8>)]) {
@@ -234,5 +273,148 @@ pub mod wire {
             let p = if *topic == "gnss" { &gnss } else { &act };
             p.put(bytes.clone()).await.expect("put");
         }
+    }
+}
+
+/// The daemon (`twind::run`) in-process on a peer session listening on a
+/// loopback port, with a session to publish inputs and one to watch the
+/// outputs, both connected to it.
+pub mod daemon {
+    use std::time::Duration;
+
+    use tokio_util::sync::CancellationToken;
+    use twin_wire::outputs::{FaultMessage, StateMessage};
+    use twind::forecast::FaultPathLoad;
+    use twind::settings::Settings;
+    use zenoh::Session;
+    use zenoh::sample::Sample;
+
+    use crate::net::{config, free_port};
+    use crate::wire::Outputs;
+
+    /// A running daemon and its two neighbours.
+    pub struct Rig {
+        /// The daemon's session.
+        pub daemon: Session,
+        /// Publishes inputs.
+        pub input: Session,
+        /// Watches outputs.
+        pub output: Session,
+        cancel: CancellationToken,
+        handle: tokio::task::JoinHandle<anyhow::Result<twind::RunSummary>>,
+    }
+
+    /// Waits (10 s at most) until `publisher` sees a subscriber.
+    pub async fn wait_matching(publisher: &zenoh::pubsub::Publisher<'_>) {
+        crate::wire::wait_matching(publisher, Duration::from_secs(10)).await;
+    }
+
+    /// A daemon with `settings`.
+    pub async fn rig(settings: Settings) -> Rig {
+        rig_observed(settings, FaultPathLoad::new()).await
+    }
+
+    /// [`rig`], the daemon's dispatcher reporting to `load`.
+    pub async fn rig_observed(settings: Settings, load: FaultPathLoad) -> Rig {
+        let port = free_port();
+        let daemon = zenoh::open(config("peer", &[port], &[])).await.unwrap();
+        let input = zenoh::open(config("peer", &[], &[port])).await.unwrap();
+        let output = zenoh::open(config("peer", &[], &[port])).await.unwrap();
+        let cancel = CancellationToken::new();
+        let handle = tokio::spawn(twind::run(twind::RunConfig {
+            load,
+            ..twind::RunConfig::new(settings, daemon.clone(), cancel.clone())
+        }));
+        Rig {
+            daemon,
+            input,
+            output,
+            cancel,
+            handle,
+        }
+    }
+
+    impl Rig {
+        /// Publishes the messages of `vessel` in order.
+        pub async fn publish(&self, vessel: &str, msgs: &[(&'static str, Vec<u8>)]) {
+            crate::wire::publish(&self.input, vessel, msgs).await;
+        }
+
+        /// Subscribes to everything the daemon says about `vessel`, and
+        /// waits until the daemon's session sees the subscription.
+        pub async fn collect(&self, vessel: &str) -> Outputs {
+            self.watch(
+                &format!("asv/{vessel}/twin/**"),
+                &format!("asv/{vessel}/twin/state"),
+            )
+            .await
+        }
+
+        /// Subscribes to `key` and waits until the daemon's session sees
+        /// the subscription on `probe` (a key the daemon puts on).
+        pub async fn watch(&self, key: &str, probe: &str) -> Outputs {
+            let sub = self
+                .output
+                .declare_subscriber(key.to_string())
+                .with(zenoh::handlers::FifoChannel::new(100_000))
+                .await
+                .unwrap();
+            let probe = self
+                .daemon
+                .declare_publisher(probe.to_string())
+                .await
+                .unwrap();
+            wait_matching(&probe).await;
+            sub
+        }
+
+        /// Stops the daemon (after letting the last messages through) and
+        /// closes every session; what the daemon did.
+        pub async fn stop(self) -> twind::RunSummary {
+            tokio::time::sleep(Duration::from_millis(300)).await;
+            self.cancel.cancel();
+            let summary = tokio::time::timeout(Duration::from_secs(20), self.handle)
+                .await
+                .unwrap()
+                .unwrap()
+                .unwrap();
+            self.input.close().await.unwrap();
+            self.output.close().await.unwrap();
+            self.daemon.close().await.unwrap();
+            summary
+        }
+    }
+
+    /// The last fault message among `samples`.
+    pub fn last_fault(samples: &[Sample]) -> FaultMessage {
+        let s = samples
+            .iter()
+            .rev()
+            .find(|s| s.key_expr().as_str().ends_with("/twin/fault"))
+            .expect("a fault message");
+        serde_json::from_slice(&s.payload().to_bytes()).unwrap()
+    }
+
+    /// Every output on the twin topic ending in `suffix`, decoded.
+    pub fn outputs<T: serde::de::DeserializeOwned>(samples: &[Sample], suffix: &str) -> Vec<T> {
+        samples
+            .iter()
+            .filter(|s| s.key_expr().as_str().ends_with(suffix))
+            .map(|s| serde_json::from_slice(&s.payload().to_bytes()).unwrap())
+            .collect()
+    }
+
+    /// Every state among `samples`.
+    pub fn states(samples: &[Sample]) -> Vec<StateMessage> {
+        outputs(samples, "/twin/state")
+    }
+
+    /// What `sub` holds now.
+    pub fn drain(sub: &Outputs) -> Vec<Sample> {
+        let mut v = Vec::new();
+        while let Ok(Some(s)) = sub.try_recv() {
+            v.push(s);
+        }
+        v
     }
 }

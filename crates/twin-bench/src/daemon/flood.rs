@@ -45,9 +45,7 @@ use zenoh::Wait;
 use zenoh::qos::CongestionControl;
 
 use super::histogram::Histogram;
-use super::load::{
-    FLEET_SPEED_MPS, bench_settings, free_port, wait_matching, zenoh_config, zerr,
-};
+use super::load::{FLEET_SPEED_MPS, bench_settings, free_port, wait_matching, zenoh_config, zerr};
 use super::motion::{Circle, Fleet};
 use super::procstat;
 use crate::rng::SplitMix64;
@@ -155,7 +153,7 @@ pub fn run(opts: &FloodOptions) -> anyhow::Result<FloodReport> {
     let port = free_port()?;
     let open = |listen: &[u16], connect: &[u16]| -> anyhow::Result<zenoh::Session> {
         let config = zenoh_config(listen, connect)?;
-        rt.block_on(zenoh::open(config))
+        rt.block_on(async { zenoh::open(config).await })
             .map_err(|e| anyhow::anyhow!("opening a Zenoh session: {e}"))
     };
     let daemon = open(&[port], &[])?;
@@ -258,7 +256,12 @@ pub fn run(opts: &FloodOptions) -> anyhow::Result<FloodReport> {
                     }
                     let g_us = now_us().max(a_us + 1);
                     last_us = g_us;
-                    let fix = fleet.fix(0, epoch_s + g_us as f64 * 1e-6, g_us as f64 * 1e-6, &mut rng);
+                    let fix = fleet.fix(
+                        0,
+                        epoch_s + g_us as f64 * 1e-6,
+                        g_us as f64 * 1e-6,
+                        &mut rng,
+                    );
                     if let Ok(bytes) = encode_gnss(&fix, false) {
                         if let Ok(mut s) = stamps.lock() {
                             s.push(g_us);
@@ -276,7 +279,10 @@ pub fn run(opts: &FloodOptions) -> anyhow::Result<FloodReport> {
     // Warm-up: the vessel's first fault, then 3 s.
     let deadline = Instant::now() + Duration::from_secs(30);
     while arrivals.lock().map(|a| a.is_empty()).unwrap_or(true) {
-        anyhow::ensure!(Instant::now() < deadline, "no fault from the daemon in 30 s");
+        anyhow::ensure!(
+            Instant::now() < deadline,
+            "no fault from the daemon in 30 s"
+        );
         anyhow::ensure!(!generator.is_finished(), "the generator stopped");
         std::thread::sleep(Duration::from_millis(20));
     }
@@ -309,7 +315,7 @@ pub fn run(opts: &FloodOptions) -> anyhow::Result<FloodReport> {
             .context("starting the flooder")?
     };
     let mut rss_peak_kib = rss_before_kib;
-    let mut sample_rss = |peak: &mut Option<u64>| {
+    let sample_rss = |peak: &mut Option<u64>| {
         if let Some(r) = procstat::rss_kib() {
             *peak = Some(peak.map_or(r, |p| p.max(r)));
         }
@@ -333,8 +339,17 @@ pub fn run(opts: &FloodOptions) -> anyhow::Result<FloodReport> {
     sleep_s(1.0);
     stop.store(true, Ordering::Relaxed);
     let rss_end_kib = procstat::rss_kib();
+    // A channel as large as any count: with Zenoh 1.10 the replies for the
+    // tokens already known are handed over inside the call, and a full
+    // channel there would wait for a reader that is still in the call.
     let tokens_end = rt
-        .block_on(watcher.liveliness().get("asv/*/twin/alive"))
+        .block_on(async {
+            watcher
+                .liveliness()
+                .get("asv/*/twin/alive")
+                .with(zenoh::handlers::FifoChannel::new(1 << 20))
+                .await
+        })
         .map_err(zerr("querying the tokens"))?
         .iter()
         .filter(|r| r.result().is_ok())
@@ -367,7 +382,9 @@ pub fn run(opts: &FloodOptions) -> anyhow::Result<FloodReport> {
     let slow_threshold_ns = quiet.p99_ns.map_or(5_000_000, |p| (2 * p).max(5_000_000));
     let slow_until_s = arrivals
         .iter()
-        .filter(|a| a.sent_us >= flood0 && (a.received_us - a.sent_us) * 1000 > slow_threshold_ns as i64)
+        .filter(|a| {
+            a.sent_us >= flood0 && (a.received_us - a.sent_us) * 1000 > slow_threshold_ns as i64
+        })
         .map(|a| (a.sent_us - flood0) as f64 * 1e-6)
         .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.max(t))));
     let phases = vec![
@@ -394,7 +411,9 @@ fn ms(ns: Option<u64>) -> String {
 }
 
 fn mb(kib: Option<u64>) -> String {
-    kib.map_or("not measured".into(), |v| format!("{:.0} MB", v as f64 / 1024.0))
+    kib.map_or("not measured".into(), |v| {
+        format!("{:.0} MB", v as f64 / 1024.0)
+    })
 }
 
 impl FloodReport {
