@@ -89,7 +89,7 @@ pub mod net {
 
 /// A simulated trial as it goes on the wire, and the offline path over it.
 pub mod wire {
-    use std::time::{Duration, Instant};
+    use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
     use twin_core::twin::{TwinConfig, VesselTwin};
     use twin_sim::{Scenario, SensorEvent, SimRun};
@@ -216,6 +216,31 @@ pub mod wire {
             fault_of(s).is_some_and(|f| f.time == time)
         })
         .await
+    }
+
+    /// The wall clock, s since the Unix epoch.
+    pub fn now_s() -> f64 {
+        SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .expect("a clock after 1970")
+            .as_secs_f64()
+    }
+
+    /// A live fix (`replay` false) stamped `time_s`, `i` steps of 0.2 m
+    /// along a line north from 59.9 N 10.7 E, at 1 m/s (so 0.2 s apart).
+    /// The daemon holds a live fix to its clock: stamp it near [`now_s`].
+    pub fn live_fix(time_s: f64, i: usize) -> Vec<u8> {
+        serde_json::to_vec(&twin_wire::messages::GnssMessage {
+            time: twin_wire::time::format_rfc3339(time_s).expect("a time to format"),
+            lat_deg: 59.9 + i as f64 * 0.2 / 111_320.0,
+            lon_deg: 10.7,
+            sog_mps: 1.0,
+            cog_rad: 0.0,
+            heading_rad: Some(0.0),
+            hdop: Some(0.8),
+            replay: false,
+        })
+        .expect("JSON")
     }
 
     /// The time of a JSON input message (a fix or shaft speeds), s.

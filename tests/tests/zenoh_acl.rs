@@ -21,8 +21,7 @@ use std::time::{Duration, Instant};
 
 use tokio_util::sync::CancellationToken;
 use twin_tests::net::free_port;
-use twin_tests::wire::wait_matching;
-use twin_wire::messages::GnssMessage;
+use twin_tests::wire::{live_fix, now_s, wait_matching};
 use twind::settings::Settings;
 use zenoh::handlers::{FifoChannel, FifoChannelHandler};
 use zenoh::pubsub::Subscriber;
@@ -107,24 +106,11 @@ async fn open_as(port: u16, user: &str) -> Session {
     zenoh::open(login(port, Some(pair))).await.unwrap()
 }
 
-/// `n` GNSS fixes 0.2 s apart, heading north at 1 m/s.
+/// `n` live GNSS fixes 0.2 s apart, heading north at 1 m/s, the last one
+/// stamped now.
 fn fixes(n: usize) -> Vec<Vec<u8>> {
-    (0..n)
-        .map(|i| {
-            let t_ms = 200 * i as u64;
-            let m = GnssMessage {
-                time: format!("2024-06-01T12:00:{:02}.{:03}Z", t_ms / 1000, t_ms % 1000),
-                lat_deg: 59.9 + i as f64 * 0.2 / 111_320.0,
-                lon_deg: 10.7,
-                sog_mps: 1.0,
-                cog_rad: 0.0,
-                heading_rad: Some(0.0),
-                hdop: Some(0.8),
-                replay: false,
-            };
-            serde_json::to_vec(&m).unwrap()
-        })
-        .collect()
+    let t0 = now_s() - 0.2 * n as f64;
+    (0..n).map(|i| live_fix(t0 + 0.2 * i as f64, i)).collect()
 }
 
 /// Declares a publisher on `key`, waits until it sees a subscriber, puts

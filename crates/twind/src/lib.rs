@@ -112,44 +112,39 @@ impl StateSlot {
     }
 }
 
-/// The latest fault, alarm (one per thruster) and finding of every vessel,
-/// for the queryable: a controller or an operator that starts after the
-/// last alarm learns at once that a propeller is in fault. Each vessel
-/// writes its own slot, as with [`LatestStates`].
+/// The latest fault, alarm and finding of every vessel, for the queryable:
+/// a controller or an operator that starts after the last alarm learns at
+/// once that a propeller is in fault (the fault gives both thrusters'
+/// status; the alarm is the last status change). One reply per key, as a
+/// query's default consolidation keeps. Each vessel writes its own slot, as
+/// with [`LatestStates`].
 #[derive(Debug, Clone, Default)]
 pub struct LatestOutputs(Arc<RwLock<HashMap<String, OutputSlot>>>);
 
 /// One vessel's latest outputs (each empty until its first).
 #[derive(Debug, Clone, Default)]
-pub struct OutputSlot(Arc<Mutex<[Vec<u8>; 4]>>);
+pub struct OutputSlot(Arc<Mutex<[Vec<u8>; 3]>>);
 
 /// Which of a vessel's latest outputs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kept {
     /// `twin/fault`.
     Fault,
-    /// `twin/alarm` of the port thruster.
-    PortAlarm,
-    /// `twin/alarm` of the starboard thruster.
-    StarboardAlarm,
+    /// `twin/alarm`.
+    Alarm,
     /// `twin/finding`.
     Finding,
 }
 
 impl Kept {
     /// Every kind, in the slot's order.
-    pub const ALL: [Kept; 4] = [
-        Kept::Fault,
-        Kept::PortAlarm,
-        Kept::StarboardAlarm,
-        Kept::Finding,
-    ];
+    pub const ALL: [Kept; 3] = [Kept::Fault, Kept::Alarm, Kept::Finding];
 
     /// The topic it is published on.
     pub fn topic(self) -> Topic {
         match self {
             Kept::Fault => Topic::TwinFault,
-            Kept::PortAlarm | Kept::StarboardAlarm => Topic::TwinAlarm,
+            Kept::Alarm => Topic::TwinAlarm,
             Kept::Finding => Topic::TwinFinding,
         }
     }

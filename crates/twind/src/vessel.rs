@@ -33,7 +33,7 @@ use twin_core::diagnose::{
     BaseModel, DiagEvent, DiagnoseConfig, LiveMonitor, Trigger, diagnose, prepare,
 };
 use twin_core::otter::OtterParams;
-use twin_core::sample::{GnssFix, PropellerSpeeds, Side};
+use twin_core::sample::{GnssFix, PropellerSpeeds};
 use twin_core::twin::{Rejection, StepOutput, VesselTwin};
 use twin_wire::assemble::{Assembled, AssemblerConfig, FixAssembler};
 use twin_wire::measurement::Measurement;
@@ -778,11 +778,7 @@ impl VesselTask {
             alarm.what,
             alarm.confidence
         );
-        let kind = match change.side {
-            Side::Port => Kept::PortAlarm,
-            Side::Starboard => Kept::StarboardAlarm,
-        };
-        self.put_kept(Topic::TwinAlarm, Some(kind), &p.alarm, &alarm)
+        self.put_kept(Topic::TwinAlarm, Some(Kept::Alarm), &p.alarm, &alarm)
             .await;
     }
 

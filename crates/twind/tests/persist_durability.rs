@@ -64,6 +64,7 @@ fn a_save_flushes_the_file_before_the_rename_and_the_directory_after() {
             "--test-threads=1",
         ])
         .env(CHILD_DIR, &dir)
+        .stdout(std::process::Stdio::null())
         .status()
         .unwrap_or_else(|e| {
             panic!("strace could not be run ({e}): install it with `apt-get install strace`")

@@ -108,8 +108,9 @@ pub struct FloodReport {
     pub phases: Vec<Phase>,
     /// How long putting the burst took, s.
     pub burst_s: f64,
-    /// The last fix whose latency was over [`FloodReport::slow_threshold_ns`],
-    /// s after the burst began (`None`: none was).
+    /// The last fix of the flood and after phases whose latency was over
+    /// [`FloodReport::slow_threshold_ns`], s after the burst began (`None`:
+    /// none was).
     pub slow_until_s: Option<f64>,
     /// Twice the quiet phase's p99, at least 5 ms.
     pub slow_threshold_ns: u64,
@@ -383,7 +384,8 @@ pub fn run(opts: &FloodOptions) -> anyhow::Result<FloodReport> {
     let slow_until_s = arrivals
         .iter()
         .filter(|a| {
-            a.sent_us >= flood0 && (a.received_us - a.sent_us) * 1000 > slow_threshold_ns as i64
+            (flood0..after1).contains(&a.sent_us)
+                && (a.received_us - a.sent_us) * 1000 > slow_threshold_ns as i64
         })
         .map(|a| (a.sent_us - flood0) as f64 * 1e-6)
         .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.max(t))));
@@ -450,7 +452,7 @@ impl FloodReport {
             self.slow_threshold_ns as f64 / 1e6,
             match self.slow_until_s {
                 Some(t) => format!("{t:.1} s after the burst began"),
-                None => "never, from the burst on".into(),
+                None => "never, from the burst to the end of the after phase".into(),
             }
         ));
         s.push_str(&format!(
