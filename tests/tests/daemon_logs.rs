@@ -130,11 +130,10 @@ async fn the_log_stays_short_whatever_the_flood() {
             .all(|c| c.rejected.get("duplicate") == Some(&1))
     );
     assert!(last.save_failures >= 400, "{}", last.save_failures);
-    // ... the log is not.
-    assert!(
-        warnings <= GLOBAL_WARNINGS_PER_MINUTE as usize,
-        "{warnings} refusal warnings"
-    );
+    // ... the log is not: the 1,200 misbehaving senders write no more than
+    // the budget of a minute, 30 lines (docs/deploy.md).
+    assert_eq!(GLOBAL_WARNINGS_PER_MINUTE, 30);
+    assert!(warnings <= 30, "{warnings} refusal warnings");
     assert_eq!(save_errors, 1);
     assert_eq!(restore_warnings, 1);
 }
