@@ -9,9 +9,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
-use nalgebra::SVector;
 use twin_core::aekf::{Aekf, AekfState};
-use twin_core::geodesy::wrap_pi;
+use twin_core::estimator::{CourseGate, KineticBase, KineticOptions, LocalFix, ShaftAccumulator};
 use twin_core::model::Measurement;
 use twin_core::models::otter_twin::{OtterTwin, ShaftSpeeds};
 use twin_core::sample::{GnssFix, PropellerSpeeds};
@@ -126,39 +125,39 @@ pub struct KineticSteps {
 }
 
 /// Records the extended twin's filter steps over `inputs` with `config`:
-/// runs a `VesselTwin` and, beside it, builds each step's input (the mean
-/// of the shaft speeds since the previous fix) and measurement exactly as
-/// the twin does. Requires a trial with shaft speeds, current estimated and
-/// no restarts (a simulated trial).
+/// runs a `VesselTwin` and, beside it, takes each step's input (the mean of
+/// the shaft speeds since the previous fix) and measurement from the same
+/// estimator base as the twin. Requires a trial with shaft speeds, current
+/// estimated and no restarts (a simulated trial).
 pub fn kinetic_steps(inputs: &[TwinInput], config: TwinConfig) -> anyhow::Result<KineticSteps> {
     anyhow::ensure!(
         config.kinetic.estimate_current,
         "recording needs the current estimated (the twin zeroes it otherwise)"
     );
-    let filter = Aekf::new(OtterTwin::new(config.kinetic.params), config.kinetic.filter)
+    let gate = CourseGate {
+        min_sog_mps: config.gating.min_sog_for_course_mps,
+    };
+    let base = KineticBase::new(&config.kinetic, gate, KineticOptions::live(true))
         .map_err(|e| anyhow::anyhow!("the extended twin's filter: {e}"))?;
     let mut twin = VesselTwin::new(config).map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut start = None;
     let mut steps = Vec::new();
-    let mut sum = (0.0, 0.0, 0u32);
+    let mut shafts = ShaftAccumulator::default();
     let mut last_fix_s: Option<f64> = None;
     for input in inputs {
         match input {
             TwinInput::Propellers(p) => {
                 if twin.on_propellers(p).is_ok() {
-                    sum = (sum.0 + p.port_radps, sum.1 + p.starboard_radps, sum.2 + 1);
+                    shafts.push(p);
                 }
             }
             TwinInput::Fix(fix) => {
                 let before = twin.kinetic_state().copied();
-                let mean = (sum.2 > 0).then(|| ShaftSpeeds {
-                    port_radps: sum.0 / f64::from(sum.2),
-                    starboard_radps: sum.1 / f64::from(sum.2),
-                });
+                let samples = shafts.count();
                 if twin.on_gnss(fix).is_err() {
                     continue;
                 }
-                sum = (0.0, 0.0, 0);
+                let mean = shafts.take(fix.time_s, 0.0).filter(|_| samples > 0);
                 let (Some(before), Some(u), Some(t0), Some(frame)) =
                     (before, mean, last_fix_s, twin.frame().copied())
                 else {
@@ -167,29 +166,9 @@ pub fn kinetic_steps(inputs: &[TwinInput], config: TwinConfig) -> anyhow::Result
                 };
                 last_fix_s = Some(fix.time_s);
                 start.get_or_insert(before);
-                let ne = frame.to_local(fix.position);
-                let sog = fix.sog_mps;
-                let cog = fix.cog_rad.map(wrap_pi);
-                let heading = fix.heading_rad.map(wrap_pi);
-                let course_ok = sog.is_some_and(|s| s >= config.gating.min_sog_for_course_mps);
                 steps.push(KineticStep {
                     input: u,
-                    y: Measurement {
-                        values: SVector::<f64, 5>::from_column_slice(&[
-                            ne.north_m,
-                            ne.east_m,
-                            sog.unwrap_or(0.0),
-                            cog.unwrap_or(0.0),
-                            heading.unwrap_or(0.0),
-                        ]),
-                        available: [
-                            true,
-                            true,
-                            sog.is_some(),
-                            cog.is_some() && course_ok,
-                            heading.is_some(),
-                        ],
-                    },
+                    y: base.measurement(&LocalFix::from_gnss(fix, &frame)),
                     dt_s: fix.time_s - t0,
                 });
             }
@@ -200,7 +179,7 @@ pub fn kinetic_steps(inputs: &[TwinInput], config: TwinConfig) -> anyhow::Result
         .kinetic_state()
         .context("the extended twin is not running at the end of the trial")?;
     Ok(KineticSteps {
-        filter,
+        filter: base.filter().clone(),
         start,
         steps,
         twin_end,

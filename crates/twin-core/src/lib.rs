@@ -11,6 +11,9 @@
 //! - [`simd`]: which vector width this processor runs the filter's step at.
 //! - [`trig`]: the sine and cosine of a heading, inlined (the models' hot path).
 //! - [`aekf`]: the adaptive extended Kalman filter, generic over the model.
+//! - [`estimator`]: the estimator bases (prior, measurement from a fix,
+//!   input, step), one type per base model, shared by the live twin,
+//!   `diagnose` and the benchmarks.
 //! - [`predict`]: open-loop forecasts with their uncertainty.
 //! - [`decision`]: nominal / suspect / fault per thruster, with hysteresis.
 //! - [`diagnose`]: what the model gets wrong on a log, the cause, the gain.
@@ -25,6 +28,7 @@
 pub mod aekf;
 pub mod decision;
 pub mod diagnose;
+pub mod estimator;
 pub mod geodesy;
 pub mod inputs;
 pub mod linalg;

@@ -26,18 +26,23 @@
 //!   within [`KineticConfig::max_propeller_age_s`] the extended twin holds
 //!   and restarts its state when they return.
 
-use nalgebra::{SMatrix, SVector, Vector2, Vector4};
+use nalgebra::{SMatrix, SVector, Vector2};
 
-use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
+use crate::aekf::{AekfError, AekfState, StepReport};
 use crate::decision::{
     DecisionConfig, FaultDecider, StatusChange, ThrusterDecision, ThrusterStatus,
 };
-use crate::geodesy::{LatLon, LocalFrame, NorthEast, wrap_pi, wrap_two_pi};
-use crate::inputs::{Butterworth, InputConfigError, InputDerivationConfig, InputDeriver, LowPass};
-use crate::model::{Measurement, Model};
-use crate::models::kinematic::{KinematicInput, KinematicModel};
-use crate::models::otter_twin::{OtterTwin, ShaftSpeeds, idx, meas};
-use crate::otter::{OtterParams, seed_thruster_faults};
+use crate::estimator::seed::step_four;
+use crate::estimator::{
+    CourseGate, FaultPrior, KineticBase, KineticOptions, LocalFix, SeedBase, SeedInputs,
+    ShaftAccumulator,
+};
+pub use crate::estimator::{KineticConfig, SeedConfig};
+use crate::geodesy::{LatLon, LocalFrame, NorthEast, wrap_two_pi};
+use crate::inputs::InputConfigError;
+use crate::model::Model;
+use crate::models::kinematic::KinematicInput;
+use crate::models::otter_twin::{ShaftSpeeds, idx, meas};
 use crate::predict::{PredictedPoint, predict};
 use crate::sample::{GnssFix, PropellerSpeeds, Side};
 use crate::trig;
@@ -122,107 +127,6 @@ impl Default for GatingConfig {
             jumps_before_restart: 5,
             reinitialise_after_gap_s: 30.0,
             min_sog_for_course_mps: 0.3,
-        }
-    }
-}
-
-/// The seed's method.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SeedConfig {
-    /// The filter's tuning.
-    pub filter: AekfConfig<4, 4, 2>,
-    /// How inputs are derived from GNSS.
-    pub inputs: InputDerivationConfig,
-    /// Low-pass cut-off for the yaw acceleration of step 4, Hz (thesis: 0.9).
-    pub yaw_accel_cutoff_hz: f64,
-    /// Step 4's guard: thrusts below this give no per-thruster fault, N.
-    pub min_thrust_n: f64,
-}
-
-impl SeedConfig {
-    /// The seed's tuning (MODEL.md section 4) at its 5 Hz, with the forgetting
-    /// as the time constant it implies there (40 s) and the thesis' inputs.
-    pub fn seed() -> Self {
-        let dt = 0.2;
-        Self {
-            filter: AekfConfig {
-                process_noise_density: SMatrix::identity() * (0.01 / dt),
-                measurement_noise: SMatrix::identity() * 0.04,
-                forgetting_time_constant_s: -dt / 0.995_f64.ln(),
-                initial_fault_covariance: SMatrix::identity() * 0.1,
-                anti_windup_ratio: 0.1,
-                excitation_sigma: 0.02,
-                noise_adaptation: None,
-            },
-            inputs: InputDerivationConfig::thesis(),
-            yaw_accel_cutoff_hz: 0.9,
-            min_thrust_n: 5.0,
-        }
-    }
-}
-
-/// The extended twin.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct KineticConfig {
-    /// The vessel's parameters.
-    pub params: OtterParams,
-    /// The filter's tuning.
-    pub filter: AekfConfig<8, 5, 2>,
-    /// Initial standard deviation of the water current estimate, m/s.
-    pub initial_current_sigma_mps: f64,
-    /// Estimate the water current (off: the current is held at zero).
-    pub estimate_current: bool,
-    /// Propeller data older than this stop the extended twin, s.
-    pub max_propeller_age_s: f64,
-    /// With the current estimated, a straight run cannot tell a loss shared by
-    /// both propellers from a current along the track (both slow the vessel
-    /// alike); only turning separates them. The losses count as excited only
-    /// while the heading over the filter's memory has spread at least this
-    /// much: `1 - |mean of (cos psi, sin psi)|`, 0.05 being about a 65 deg arc.
-    pub min_heading_spread: f64,
-}
-
-impl KineticConfig {
-    /// The Otter with 5 Hz GNSS (0.3 m, 0.05 m/s) and heading, if any, at
-    /// 0.5 deg, in sheltered harbour water.
-    ///
-    /// Process noise: the kinematics are exact (tiny noise on position and
-    /// heading); the velocities take the random forces of harbour water as
-    /// white accelerations of density `q = M^-1 diag(2 F^2 T) M^-T` for gusts
-    /// and chop of 3 N surge, 4 N sway, 0.5 N m yaw with 2 s correlation (the
-    /// simulator's default disturbance, `twin_sim::DisturbanceSpec`); the
-    /// current drifts slowly.
-    pub fn otter() -> Self {
-        let mut q = SMatrix::<f64, 8, 8>::from_diagonal(&SVector::<f64, 8>::from_column_slice(&[
-            1e-6, 1e-6, 1e-7, // position and heading
-            4.9e-3, 2.5e-3, 7.8e-4, // surge, sway, yaw accelerations
-            1e-6, 1e-6, // current
-        ]));
-        // The sway-yaw mass coupling turns a sway force into a yaw acceleration too.
-        q[(idx::V, idx::R)] = -7.7e-4;
-        q[(idx::R, idx::V)] = -7.7e-4;
-        let r = SVector::<f64, 5>::from_column_slice(&[
-            0.3 * 0.3,
-            0.3 * 0.3,
-            0.05 * 0.05,
-            0.03 * 0.03,
-            0.0087 * 0.0087,
-        ]);
-        Self {
-            params: OtterParams::default(),
-            filter: AekfConfig {
-                process_noise_density: q,
-                measurement_noise: SMatrix::from_diagonal(&r),
-                forgetting_time_constant_s: 60.0,
-                initial_fault_covariance: SMatrix::identity() * 0.1,
-                anti_windup_ratio: 0.1,
-                excitation_sigma: 0.03,
-                noise_adaptation: None,
-            },
-            initial_current_sigma_mps: 0.5,
-            estimate_current: true,
-            max_propeller_age_s: 1.0,
-            min_heading_spread: 0.05,
         }
     }
 }
@@ -393,40 +297,23 @@ pub struct Calibration {
     pub time_s: f64,
 }
 
+/// The seed's method as the twin runs it: its base, its inputs, and the
+/// running estimate.
 #[derive(Debug, Clone)]
 struct SeedEstimator {
-    filter: Aekf<KinematicModel, 4, 4, 2>,
+    base: SeedBase,
+    inputs: SeedInputs,
     state: Option<AekfState<4, 4, 2>>,
-    deriver: InputDeriver,
-    yaw_accel: YawAcceleration,
-    last_input: KinematicInput,
     last_report: Option<StepReport<4, 2>>,
     last_available: [bool; 4],
     thruster_loss: [Option<f64>; 2],
 }
 
-/// The seed's yaw acceleration for step 4: differences of the derived course
-/// rate, low-passed (thesis eq. 3.18, 0.9 Hz).
-#[derive(Debug, Clone)]
-struct YawAcceleration {
-    filter: Butterworth,
-    last: Option<(f64, f64)>,
-}
-
-impl YawAcceleration {
-    fn push(&mut self, time_s: f64, rate: f64) -> f64 {
-        let raw = match self.last {
-            Some((t0, r0)) if time_s > t0 => (rate - r0) / (time_s - t0),
-            _ => 0.0,
-        };
-        self.last = Some((time_s, rate));
-        self.filter.step(raw)
-    }
-}
-
+/// The extended twin as the twin runs it: its base, the running estimate,
+/// and how far the heading has spread over the filter's memory.
 #[derive(Debug, Clone)]
 struct KineticEstimator {
-    filter: Aekf<OtterTwin<8>, 8, 5, 2>,
+    base: KineticBase,
     state: Option<AekfState<8, 5, 2>>,
     last_report: Option<StepReport<5, 2>>,
     last_available: [bool; 5],
@@ -434,6 +321,19 @@ struct KineticEstimator {
     /// Exponentially weighted mean of the unit heading vector over the
     /// filter's memory (see [`KineticConfig::min_heading_spread`]).
     heading_mean: [f64; 2],
+}
+
+impl KineticEstimator {
+    /// Moves the heading's running mean towards the estimate after a step
+    /// of `dt_s`.
+    fn track_heading(&mut self, dt_s: f64) {
+        let Some(state) = &self.state else { return };
+        let w = 1.0 - self.base.filter().lambda(dt_s);
+        let (sin_h, cos_h) = trig::sin_cos(state.x[idx::PSI]);
+        let m = &mut self.heading_mean;
+        m[0] += w * (cos_h - m[0]);
+        m[1] += w * (sin_h - m[1]);
+    }
 }
 
 /// What [`VesselTwin::on_gnss`] can have changed when a step fails: the
@@ -445,7 +345,7 @@ struct StepUndo {
     frame: Option<LocalFrame>,
     seed: SeedEstimator,
     kinetic_state: Option<Option<AekfState<8, 5, 2>>>,
-    propellers: PropellerAccumulator,
+    propellers: ShaftAccumulator,
     last_propeller_time_s: Option<f64>,
 }
 
@@ -471,14 +371,6 @@ impl StepUndo {
     }
 }
 
-#[derive(Debug, Clone, Copy, Default)]
-struct PropellerAccumulator {
-    sum_port: f64,
-    sum_stb: f64,
-    count: u32,
-    last: Option<PropellerSpeeds>,
-}
-
 /// The twin of one vessel.
 #[derive(Debug, Clone)]
 pub struct VesselTwin {
@@ -488,7 +380,7 @@ pub struct VesselTwin {
     jump_run: Vec<(f64, NorthEast)>,
     seed: SeedEstimator,
     kinetic: KineticEstimator,
-    propellers: PropellerAccumulator,
+    propellers: ShaftAccumulator,
     last_propeller_time_s: Option<f64>,
     decider: FaultDecider,
     restored: Option<Calibration>,
@@ -508,31 +400,24 @@ pub enum TwinConfigError {
 impl VesselTwin {
     /// A twin with `config` that has seen nothing yet.
     pub fn new(config: TwinConfig) -> Result<Self, TwinConfigError> {
-        let rate = match config.seed.inputs.low_pass {
-            LowPass::Butterworth { sample_rate_hz, .. } => sample_rate_hz,
-            _ => 5.0,
+        let gate = CourseGate {
+            min_sog_mps: config.gating.min_sog_for_course_mps,
         };
-        let mut kinetic_filter = config.kinetic.filter;
-        if !config.kinetic.estimate_current {
-            kinetic_filter.process_noise_density[(idx::CURRENT_NORTH, idx::CURRENT_NORTH)] = 0.0;
-            kinetic_filter.process_noise_density[(idx::CURRENT_EAST, idx::CURRENT_EAST)] = 0.0;
-        }
         Ok(Self {
             seed: SeedEstimator {
-                filter: Aekf::new(KinematicModel, config.seed.filter)?,
+                base: SeedBase::new(&config.seed, gate)?,
+                inputs: SeedInputs::new(&config.seed)?,
                 state: None,
-                deriver: InputDeriver::new(config.seed.inputs)?,
-                yaw_accel: YawAcceleration {
-                    filter: Butterworth::new(5, config.seed.yaw_accel_cutoff_hz, rate)?,
-                    last: None,
-                },
-                last_input: KinematicInput::default(),
                 last_report: None,
                 last_available: [false; 4],
                 thruster_loss: [None, None],
             },
             kinetic: KineticEstimator {
-                filter: Aekf::new(OtterTwin::new(config.kinetic.params), kinetic_filter)?,
+                base: KineticBase::new(
+                    &config.kinetic,
+                    gate,
+                    KineticOptions::live(config.kinetic.estimate_current),
+                )?,
                 state: None,
                 last_report: None,
                 last_available: [false; 5],
@@ -543,7 +428,7 @@ impl VesselTwin {
             frame: None,
             last_fix: None,
             jump_run: Vec::new(),
-            propellers: PropellerAccumulator::default(),
+            propellers: ShaftAccumulator::default(),
             last_propeller_time_s: None,
             decider: FaultDecider::new(config.decision),
             restored: None,
@@ -594,15 +479,11 @@ impl VesselTwin {
             }
             if p.time_s < last - gap {
                 // A new track back in time (see `on_gnss`).
-                self.propellers = PropellerAccumulator::default();
+                self.propellers = ShaftAccumulator::default();
             }
         }
         self.last_propeller_time_s = Some(p.time_s);
-        let acc = &mut self.propellers;
-        acc.sum_port += p.port_radps;
-        acc.sum_stb += p.starboard_radps;
-        acc.count += 1;
-        acc.last = Some(*p);
+        self.propellers.push(p);
         Ok(())
     }
 
@@ -726,7 +607,7 @@ impl VesselTwin {
             if self.last_fix.is_some_and(|(t, _)| fix.time_s < t) {
                 // A new track back in time: propeller samples start over too.
                 self.last_propeller_time_s = None;
-                self.propellers = PropellerAccumulator::default();
+                self.propellers = ShaftAccumulator::default();
             }
         }
         let changes = match self.step_estimators(fix, ne, restart) {
@@ -750,147 +631,23 @@ impl VesselTwin {
         }
     }
 
+    /// Steps both estimators to `fix` (at `ne` in the local frame) and
+    /// updates the decision; `restarted` when the state estimate starts over.
     fn step_estimators(
         &mut self,
         fix: &GnssFix,
         ne: NorthEast,
         restarted: bool,
     ) -> Result<Vec<StatusChange>, Rejection> {
-        let g = self.config.gating;
         let dt = self.last_fix.map(|(t, _)| fix.time_s - t);
-        let course_ok = fix.sog_mps.is_some_and(|s| s >= g.min_sog_for_course_mps);
+        let local = LocalFix::at(fix, ne);
+        self.step_seed(&local, dt, restarted)?;
+        let input = self
+            .propellers
+            .take(fix.time_s, self.config.kinetic.max_propeller_age_s);
+        self.step_kinetic(&local, input, dt)?;
 
-        // --- The seed's method.
-        let sog = fix.sog_mps;
-        let cog = fix.cog_rad.map(wrap_pi);
-        let derived = match (sog, cog) {
-            (Some(s), Some(c)) if !restarted => self.seed.deriver.push(fix.time_s, s, c),
-            (Some(s), Some(c)) => {
-                self.seed.deriver = InputDeriver::new(self.config.seed.inputs)
-                    .map_err(|_| Rejection::Estimator(AekfError::InvalidConfig("inputs")))?;
-                self.seed.deriver.push(fix.time_s, s, c)
-            }
-            _ => None,
-        };
-        let y_seed = Measurement {
-            values: Vector4::new(
-                ne.north_m,
-                ne.east_m,
-                sog.unwrap_or(0.0),
-                cog.unwrap_or(0.0),
-            ),
-            available: [true, true, sog.is_some(), cog.is_some() && course_ok],
-        };
-        match (&mut self.seed.state, dt) {
-            (Some(state), Some(dt)) => {
-                let input = derived.unwrap_or(self.seed.last_input);
-                let report = self
-                    .seed
-                    .filter
-                    .step(state, &input, &y_seed, dt)
-                    .map_err(Rejection::Estimator)?;
-                self.seed.last_report = Some(report);
-                self.seed.last_available = y_seed.available;
-                self.seed.last_input = input;
-                let r_dot = self
-                    .seed
-                    .yaw_accel
-                    .push(fix.time_s, input.course_rate_radps);
-                let faults = seed_thruster_faults(
-                    &self.config.kinetic.params,
-                    state.x[2],
-                    input.course_rate_radps,
-                    input.accel_mps2,
-                    r_dot,
-                    state.theta,
-                    self.config.seed.min_thrust_n,
-                );
-                self.seed.thruster_loss = faults.loss;
-            }
-            _ => {
-                let x0 = Vector4::new(
-                    ne.north_m,
-                    ne.east_m,
-                    sog.unwrap_or(0.0),
-                    cog.unwrap_or(0.0),
-                );
-                let p0 = self.config.seed.filter.measurement_noise;
-                let theta0 = self.restored_theta(FaultSource::SeedMethod);
-                let mut st = AekfState::new(&self.config.seed.filter, x0, p0, theta0.0);
-                if let Some(s) = theta0.1 {
-                    st.s = s;
-                }
-                self.seed.state = Some(st);
-            }
-        }
-
-        // --- The extended twin, while propeller data arrive.
-        let acc = std::mem::take(&mut self.propellers);
-        let input = if acc.count > 0 {
-            Some(ShaftSpeeds {
-                port_radps: acc.sum_port / acc.count as f64,
-                starboard_radps: acc.sum_stb / acc.count as f64,
-            })
-        } else {
-            acc.last
-                .filter(|p| fix.time_s - p.time_s <= self.config.kinetic.max_propeller_age_s)
-                .map(|p| ShaftSpeeds {
-                    port_radps: p.port_radps,
-                    starboard_radps: p.starboard_radps,
-                })
-        };
-        self.propellers.last = acc.last;
-        match input {
-            None => self.kinetic.state = None,
-            Some(u) => {
-                let heading = fix.heading_rad.map(wrap_pi);
-                let y = Measurement {
-                    values: SVector::<f64, 5>::from_column_slice(&[
-                        ne.north_m,
-                        ne.east_m,
-                        sog.unwrap_or(0.0),
-                        cog.unwrap_or(0.0),
-                        heading.unwrap_or(0.0),
-                    ]),
-                    available: [
-                        true,
-                        true,
-                        sog.is_some(),
-                        cog.is_some() && course_ok,
-                        heading.is_some(),
-                    ],
-                };
-                match (&mut self.kinetic.state, dt) {
-                    (Some(state), Some(dt)) => {
-                        let report = self
-                            .kinetic
-                            .filter
-                            .step(state, &u, &y, dt)
-                            .map_err(Rejection::Estimator)?;
-                        if !self.config.kinetic.estimate_current {
-                            state.x[idx::CURRENT_NORTH] = 0.0;
-                            state.x[idx::CURRENT_EAST] = 0.0;
-                        }
-                        self.kinetic.last_report = Some(report);
-                        self.kinetic.last_available = y.available;
-                        let w = 1.0 - self.kinetic.filter.lambda(dt);
-                        let (sin_h, cos_h) = trig::sin_cos(state.x[idx::PSI]);
-                        let m = &mut self.kinetic.heading_mean;
-                        m[0] += w * (cos_h - m[0]);
-                        m[1] += w * (sin_h - m[1]);
-                    }
-                    _ => {
-                        let st = self.initial_kinetic_state(fix, ne);
-                        let (sin_h, cos_h) = trig::sin_cos(st.x[idx::PSI]);
-                        self.kinetic.heading_mean = [cos_h, sin_h];
-                        self.kinetic.state = Some(st);
-                    }
-                }
-                self.kinetic.last_input = Some(u);
-            }
-        }
-
-        // --- The decision, from the extended twin where it runs.
+        // The decision, from the extended twin where it runs.
         let faults = self.fault_report(fix.time_s);
         let loss = [faults.thrusters[0].loss, faults.thrusters[1].loss];
         let sigma = [faults.thrusters[0].sigma, faults.thrusters[1].sigma];
@@ -901,57 +658,94 @@ impl VesselTwin {
         })
     }
 
-    fn restored_theta(&self, source: FaultSource) -> (SVector<f64, 2>, Option<SMatrix<f64, 2, 2>>) {
-        match self.restored {
-            Some(c) if c.source == source => (
-                Vector2::new(c.theta[0], c.theta[1]),
-                Some(SMatrix::<f64, 2, 2>::new(
+    /// The seed's method: its inputs from the track, its step (or its first
+    /// estimate), and step 4.
+    fn step_seed(
+        &mut self,
+        fix: &LocalFix,
+        dt: Option<f64>,
+        restarted: bool,
+    ) -> Result<(), Rejection> {
+        let restored = self.restored_faults(FaultSource::SeedMethod);
+        let seed = &mut self.seed;
+        let derived = seed
+            .inputs
+            .push(fix, restarted)
+            .map_err(|_| Rejection::Estimator(AekfError::InvalidConfig("inputs")))?;
+        match (&mut seed.state, dt) {
+            (Some(state), Some(dt)) => {
+                let input = derived.unwrap_or(seed.inputs.last());
+                let report = seed
+                    .base
+                    .step(state, &input, fix, dt)
+                    .map_err(Rejection::Estimator)?;
+                seed.last_report = Some(report);
+                seed.last_available = seed.base.measurement(fix).available;
+                let yaw_accel = seed.inputs.record(fix.time_s, input);
+                seed.thruster_loss = step_four(
+                    &self.config.kinetic.params,
+                    &self.config.seed,
+                    state,
+                    &input,
+                    yaw_accel,
+                );
+            }
+            _ => {
+                seed.state = Some(seed.base.prior(fix, restored));
+            }
+        }
+        Ok(())
+    }
+
+    /// The extended twin, while propeller data arrive: its step with the
+    /// mean shaft speeds since the last fix (or its first estimate); without
+    /// propeller data it stops.
+    fn step_kinetic(
+        &mut self,
+        fix: &LocalFix,
+        input: Option<ShaftSpeeds>,
+        dt: Option<f64>,
+    ) -> Result<(), Rejection> {
+        let Some(u) = input else {
+            self.kinetic.state = None;
+            return Ok(());
+        };
+        let restored = self.restored_faults(FaultSource::Kinetic);
+        let kinetic = &mut self.kinetic;
+        match (&mut kinetic.state, dt) {
+            (Some(state), Some(dt)) => {
+                let report = kinetic
+                    .base
+                    .step(state, &u, fix, dt)
+                    .map_err(Rejection::Estimator)?;
+                kinetic.last_report = Some(report);
+                kinetic.last_available = kinetic.base.measurement(fix).available;
+                kinetic.track_heading(dt);
+            }
+            _ => {
+                let state = kinetic.base.prior(fix, restored);
+                let (sin_h, cos_h) = trig::sin_cos(state.x[idx::PSI]);
+                kinetic.heading_mean = [cos_h, sin_h];
+                kinetic.state = Some(state);
+            }
+        }
+        kinetic.last_input = Some(u);
+        Ok(())
+    }
+
+    /// The fault prior of a restored calibration learnt by `source`.
+    fn restored_faults(&self, source: FaultSource) -> Option<FaultPrior<2>> {
+        self.restored
+            .filter(|c| c.source == source)
+            .map(|c| FaultPrior {
+                theta: Vector2::new(c.theta[0], c.theta[1]),
+                covariance: SMatrix::<f64, 2, 2>::new(
                     c.theta_covariance[0],
                     c.theta_covariance[1],
                     c.theta_covariance[2],
                     c.theta_covariance[3],
-                )),
-            ),
-            _ => (SVector::zeros(), None),
-        }
-    }
-
-    fn initial_kinetic_state(&self, fix: &GnssFix, ne: NorthEast) -> AekfState<8, 5, 2> {
-        let cfg = &self.config.kinetic;
-        let sog = fix.sog_mps.unwrap_or(0.0);
-        let psi = fix.heading_rad.or(fix.cog_rad).map(wrap_pi).unwrap_or(0.0);
-        let mut x0 = SVector::<f64, 8>::zeros();
-        x0[idx::NORTH] = ne.north_m;
-        x0[idx::EAST] = ne.east_m;
-        x0[idx::PSI] = psi;
-        x0[idx::U] = sog;
-        let r = &cfg.filter.measurement_noise;
-        let heading_var = if fix.heading_rad.is_some() {
-            r[(meas::HEADING, meas::HEADING)]
-        } else {
-            0.5f64.powi(2)
-        };
-        let cur_var = if cfg.estimate_current {
-            cfg.initial_current_sigma_mps.powi(2)
-        } else {
-            1e-12
-        };
-        let p0 = SMatrix::<f64, 8, 8>::from_diagonal(&SVector::<f64, 8>::from_column_slice(&[
-            r[(meas::NORTH, meas::NORTH)],
-            r[(meas::EAST, meas::EAST)],
-            heading_var,
-            0.3f64.powi(2) + cur_var,
-            0.3f64.powi(2),
-            0.1f64.powi(2),
-            cur_var,
-            cur_var,
-        ]));
-        let (theta0, s0) = self.restored_theta(FaultSource::Kinetic);
-        let mut st = AekfState::new(&cfg.filter, x0, p0, theta0);
-        if let Some(s) = s0 {
-            st.s = s;
-        }
-        st
+                ),
+            })
     }
 
     /// Restores a saved calibration: the next estimator started takes its
@@ -962,18 +756,20 @@ impl VesselTwin {
             self.decider
                 .restore(side, calibration.decisions[side.index()]);
         }
-        let (theta, s) = self.restored_theta(calibration.source);
+        let Some(prior) = self.restored_faults(calibration.source) else {
+            return;
+        };
         match calibration.source {
             FaultSource::Kinetic => {
                 if let Some(st) = &mut self.kinetic.state {
-                    st.theta = theta;
-                    st.s = s.unwrap_or(st.s);
+                    st.theta = prior.theta;
+                    st.s = prior.covariance;
                 }
             }
             FaultSource::SeedMethod => {
                 if let Some(st) = &mut self.seed.state {
-                    st.theta = theta;
-                    st.s = s.unwrap_or(st.s);
+                    st.theta = prior.theta;
+                    st.s = prior.covariance;
                 }
             }
         }
@@ -1087,7 +883,7 @@ impl VesselTwin {
         let frame = self.frame?;
         let (time_s, _) = self.last_fix?;
         if let Some(k) = &self.kinetic.state {
-            let obs = self.kinetic.filter.model.observe(&k.x);
+            let obs = self.kinetic.base.model().observe(&k.x);
             let cov = obs.jacobian * k.p * obs.jacobian.transpose();
             let local = NorthEast {
                 north_m: k.x[idx::NORTH],
@@ -1192,7 +988,7 @@ impl VesselTwin {
         match (&self.kinetic.state, self.kinetic.last_input) {
             (Some(_), Some(u)) => self.forecast_kinetic(std::iter::repeat_n((step_s, u), steps)),
             _ => {
-                let u = self.seed.last_input;
+                let u = self.seed.inputs.last();
                 self.forecast_seed(std::iter::repeat_n((step_s, u), steps))
             }
         }
@@ -1208,7 +1004,7 @@ impl VesselTwin {
         else {
             return Vec::new();
         };
-        let model = &self.kinetic.filter.model;
+        let model = self.kinetic.base.model();
         let points = predict(model, k, &k.process_noise_density, t0, inputs);
         points
             .iter()
@@ -1240,7 +1036,7 @@ impl VesselTwin {
             return Vec::new();
         };
         predict(
-            &self.seed.filter.model,
+            &self.seed.base.filter().model,
             s,
             &s.process_noise_density,
             t0,
@@ -1266,7 +1062,7 @@ impl VesselTwin {
 
     /// The seed method's last derived input.
     pub fn seed_last_input(&self) -> KinematicInput {
-        self.seed.last_input
+        self.seed.inputs.last()
     }
 }
 
@@ -1368,9 +1164,9 @@ mod tests {
         // those changes.
         let mut healthy = twin_with_both_estimators(fixes, false);
         let seed_before = healthy.seed.state.unwrap().x;
-        let samples_before = healthy.propellers.count;
+        let samples_before = healthy.propellers.count();
         healthy.on_gnss(&next).expect("a working filter accepts it");
         assert_ne!(healthy.seed.state.unwrap().x, seed_before);
-        assert_ne!(healthy.propellers.count, samples_before);
+        assert_ne!(healthy.propellers.count(), samples_before);
     }
 }

@@ -241,8 +241,8 @@ fn diagnose_events(
     replay: bool,
 ) -> Option<FindingsMessage> {
     let prep = prepare(events)?;
-    let first = prep.steps.first()?.time_s;
-    let last = prep.steps.last()?.time_s;
+    let first = prep.steps.first()?.fix.time_s;
+    let last = prep.steps.last()?.fix.time_s;
     let d = diagnose(&prep, config);
     Some(FindingsMessage {
         vessel: vessel.to_string(),

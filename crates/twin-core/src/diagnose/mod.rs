@@ -47,6 +47,7 @@
 
 mod fit;
 mod monitor;
+mod pass;
 mod prepare;
 mod residuals;
 

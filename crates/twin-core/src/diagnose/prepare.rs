@@ -1,6 +1,7 @@
 //! The log on one time line, in the local frame, ready for the filters.
 
-use crate::geodesy::{LocalFrame, NorthEast, wrap_pi};
+use crate::estimator::{LocalFix, ShaftAccumulator};
+use crate::geodesy::{LocalFrame, wrap_pi};
 use crate::sample::{GnssFix, PropellerSpeeds};
 
 /// One measurement of the log.
@@ -22,18 +23,9 @@ pub enum DiagEvent {
 /// One filter step: a fix with everything measured near it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Step {
-    /// Time, s.
-    pub time_s: f64,
-    /// Position in the local frame.
-    pub position: NorthEast,
-    /// SOG, m/s.
-    pub sog_mps: Option<f64>,
-    /// COG, rad (masked below the minimum speed for a course).
-    pub cog_rad: Option<f64>,
-    /// Heading, rad.
-    pub heading_rad: Option<f64>,
-    /// Speed through water within half a second of the fix, m/s.
-    pub stw_mps: Option<f64>,
+    /// The fix, with the speed through water measured within half a second
+    /// of it (the estimator bases mask its course below their gate's speed).
+    pub fix: LocalFix,
     /// Mean propeller speeds over the interval ending at this fix
     /// `[port, starboard]`, rad/s.
     pub shafts_radps: Option<[f64; 2]>,
@@ -56,9 +48,6 @@ pub struct Prepared {
     pub dropped: usize,
 }
 
-/// Below this SOG the course is noise, m/s.
-pub const MIN_SOG_FOR_COURSE_MPS: f64 = 0.3;
-
 /// Puts the events (any order) on one time line.
 pub fn prepare(events: &[DiagEvent]) -> Option<Prepared> {
     let mut events: Vec<DiagEvent> = events.to_vec();
@@ -80,16 +69,13 @@ pub fn prepare(events: &[DiagEvent]) -> Option<Prepared> {
     let mut frame: Option<LocalFrame> = None;
     let mut steps: Vec<Step> = Vec::new();
     let mut dropped = 0;
-    let mut shaft_sum = [0.0; 2];
-    let mut shaft_count = 0usize;
+    let mut shafts = ShaftAccumulator::default();
     let mut stw_i = 0usize;
     for e in &events {
         match e {
             DiagEvent::Propellers(p) => {
                 if p.port_radps.is_finite() && p.starboard_radps.is_finite() {
-                    shaft_sum[0] += p.port_radps;
-                    shaft_sum[1] += p.starboard_radps;
-                    shaft_count += 1;
+                    shafts.push(p);
                 }
             }
             DiagEvent::SpeedThroughWater { .. } => {}
@@ -97,7 +83,7 @@ pub fn prepare(events: &[DiagEvent]) -> Option<Prepared> {
                 let ok = f.time_s.is_finite()
                     && f.position.is_valid()
                     && f.position.lat_deg.abs() < 89.0
-                    && steps.last().is_none_or(|s| f.time_s > s.time_s);
+                    && steps.last().is_none_or(|s| f.time_s > s.fix.time_s);
                 if !ok {
                     dropped += 1;
                     continue;
@@ -105,10 +91,7 @@ pub fn prepare(events: &[DiagEvent]) -> Option<Prepared> {
                 let frame = *frame
                     .get_or_insert_with(|| LocalFrame::new(f.position).expect("a valid position"));
                 let sog = f.sog_mps.filter(|v| v.is_finite() && *v >= 0.0);
-                let cog = f
-                    .cog_rad
-                    .filter(|v| v.is_finite() && sog.is_some_and(|s| s >= MIN_SOG_FOR_COURSE_MPS))
-                    .map(wrap_pi);
+                let cog = f.cog_rad.filter(|v| v.is_finite()).map(wrap_pi);
                 while stw_i + 1 < stw.len() && stw[stw_i + 1].0 <= f.time_s {
                     stw_i += 1;
                 }
@@ -118,22 +101,22 @@ pub fn prepare(events: &[DiagEvent]) -> Option<Prepared> {
                     .filter(|(t, _)| (t - f.time_s).abs() <= 0.5)
                     .min_by(|a, b| (a.0 - f.time_s).abs().total_cmp(&(b.0 - f.time_s).abs()))
                     .map(|(_, v)| *v);
+                let samples = shafts.count();
+                let mean = shafts.take(f.time_s, 0.0);
                 steps.push(Step {
-                    time_s: f.time_s,
-                    position: frame.to_local(f.position),
-                    sog_mps: sog,
-                    cog_rad: cog,
-                    heading_rad: f.heading_rad.filter(|v| v.is_finite()).map(wrap_pi),
-                    stw_mps: near_stw,
-                    shafts_radps: (shaft_count > 0).then(|| {
-                        [
-                            shaft_sum[0] / shaft_count as f64,
-                            shaft_sum[1] / shaft_count as f64,
-                        ]
-                    }),
+                    fix: LocalFix {
+                        time_s: f.time_s,
+                        position: frame.to_local(f.position),
+                        sog_mps: sog,
+                        cog_rad: cog,
+                        heading_rad: f.heading_rad.filter(|v| v.is_finite()).map(wrap_pi),
+                        stw_mps: near_stw,
+                    },
+                    shafts_radps: (samples > 0)
+                        .then_some(mean)
+                        .flatten()
+                        .map(|m| [m.port_radps, m.starboard_radps]),
                 });
-                shaft_sum = [0.0; 2];
-                shaft_count = 0;
             }
         }
     }
@@ -145,8 +128,8 @@ pub fn prepare(events: &[DiagEvent]) -> Option<Prepared> {
     Some(Prepared {
         frame: frame?,
         has_propellers: most(steps.iter().filter(|s| s.shafts_radps.is_some()).count()),
-        has_heading: most(steps.iter().filter(|s| s.heading_rad.is_some()).count()),
-        has_stw: most(steps.iter().filter(|s| s.stw_mps.is_some()).count()),
+        has_heading: most(steps.iter().filter(|s| s.fix.heading_rad.is_some()).count()),
+        has_stw: most(steps.iter().filter(|s| s.fix.stw_mps.is_some()).count()),
         steps,
         dropped,
     })

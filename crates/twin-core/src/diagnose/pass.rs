@@ -1,0 +1,394 @@
+//! One pass of a base model's filter over a prepared log: the training
+//! part's likelihood (what the fits maximise), the held-out part's
+//! likelihood, innovations and k-step-ahead forecast errors (what the
+//! findings are judged on), and the state estimates at the split.
+//!
+//! The bases are those of the live twin ([`crate::estimator`]); this module
+//! only adds what a diagnosis reads off them ([`PassBase`]).
+
+use nalgebra::{SMatrix, SVector};
+
+use super::fit::{DiagnoseConfig, Hypothesis};
+use super::prepare::{Prepared, Step};
+use super::residuals::InnovationRecord;
+use crate::aekf::{AekfError, AekfState, StepReport};
+use crate::estimator::{
+    CourseGate, KineticBase, KineticOptions, LocalFix, WaterBase, WaterOptions,
+};
+use crate::linalg::cholesky;
+use crate::model::Model;
+use crate::models::otter_twin::{OtterTwin, ShaftSpeeds, idx as kidx};
+use crate::models::water_kinematic::{WaterKinematic, idx as widx};
+use crate::predict::predict_states;
+
+/// State-type estimates at the end of the training part.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct AtSplit {
+    pub current: [f64; 2],
+    pub current_cov: [[f64; 2]; 2],
+    pub loss: [f64; 2],
+    pub loss_sigma: [f64; 2],
+}
+
+/// What a pass measured.
+#[derive(Debug, Clone, Default)]
+pub(super) struct PassOut {
+    pub nll_train: f64,
+    pub nll_test: f64,
+    pub steps_test: usize,
+    pub at_split: AtSplit,
+    pub records: Vec<InnovationRecord>,
+    /// Per horizon: `(horizon s, sum of squared position errors m^2, count)`.
+    pub forecast: Vec<(f64, f64, usize)>,
+    pub failed: bool,
+}
+
+impl PassOut {
+    fn failed() -> Self {
+        Self {
+            failed: true,
+            ..Self::default()
+        }
+    }
+
+    /// Position prediction RMSE per horizon: `(horizon s, m)`.
+    pub fn rmse(&self) -> Vec<(f64, f64)> {
+        self.forecast
+            .iter()
+            .map(|(h, sq, n)| {
+                (
+                    *h,
+                    if *n > 0 {
+                        (sq / *n as f64).sqrt()
+                    } else {
+                        f64::NAN
+                    },
+                )
+            })
+            .collect()
+    }
+}
+
+/// How far a pass goes and what it keeps.
+#[derive(Clone, Copy)]
+pub(super) struct PassOptions<'a> {
+    /// First held-out step.
+    pub split: usize,
+    /// Stop after the training part (fitting runs).
+    pub train_only: bool,
+    /// Keep the held-out innovations.
+    pub record: bool,
+    pub config: &'a DiagnoseConfig,
+}
+
+/// The input type of a model.
+type InputOf<Mdl, const N: usize, const M: usize, const P: usize> = <Mdl as Model<N, M, P>>::Input;
+
+/// What a diagnosis needs of a base beyond the live twin's use of it.
+trait PassBase<const N: usize, const M: usize, const P: usize> {
+    type Model: Model<N, M, P>;
+    /// Where each measurement component goes in an [`InnovationRecord`].
+    const SLOTS: [usize; M];
+
+    fn model(&self) -> &Self::Model;
+    fn prior(&self, fix: &LocalFix) -> AekfState<N, M, P>;
+    fn available(&self, fix: &LocalFix) -> [bool; M];
+    fn step(
+        &self,
+        state: &mut AekfState<N, M, P>,
+        input: &InputOf<Self::Model, N, M, P>,
+        fix: &LocalFix,
+        dt_s: f64,
+    ) -> Result<StepReport<M, P>, AekfError>;
+    /// The input of every step, in step order.
+    fn inputs(&self, steps: &[Step]) -> Vec<InputOf<Self::Model, N, M, P>>;
+    /// `[sin heading, cos heading, speed, yaw rate]` of a state.
+    fn signatures(&self, x: &SVector<f64, N>) -> [f64; 4];
+    fn at_split(&self, state: &AekfState<N, M, P>) -> AtSplit;
+}
+
+struct Kinetic(KineticBase);
+
+impl PassBase<8, 5, 2> for Kinetic {
+    type Model = OtterTwin<8>;
+    const SLOTS: [usize; 5] = [0, 1, 2, 3, 4];
+
+    fn model(&self) -> &OtterTwin<8> {
+        self.0.model()
+    }
+
+    fn prior(&self, fix: &LocalFix) -> AekfState<8, 5, 2> {
+        self.0.prior(fix, None)
+    }
+
+    fn available(&self, fix: &LocalFix) -> [bool; 5] {
+        self.0.measurement(fix).available
+    }
+
+    fn step(
+        &self,
+        state: &mut AekfState<8, 5, 2>,
+        input: &ShaftSpeeds,
+        fix: &LocalFix,
+        dt_s: f64,
+    ) -> Result<StepReport<5, 2>, AekfError> {
+        self.0.step(state, input, fix, dt_s)
+    }
+
+    /// The mean shaft speeds over each step's interval; an interval without
+    /// samples holds the last.
+    fn inputs(&self, steps: &[Step]) -> Vec<ShaftSpeeds> {
+        let mut last = ShaftSpeeds::default();
+        steps
+            .iter()
+            .map(|s| {
+                if let Some([p, sb]) = s.shafts_radps {
+                    last = ShaftSpeeds {
+                        port_radps: p,
+                        starboard_radps: sb,
+                    };
+                }
+                last
+            })
+            .collect()
+    }
+
+    fn signatures(&self, x: &SVector<f64, 8>) -> [f64; 4] {
+        let (s, c) = x[kidx::PSI].sin_cos();
+        [s, c, x[kidx::U].hypot(x[kidx::V]), x[kidx::R]]
+    }
+
+    fn at_split(&self, st: &AekfState<8, 5, 2>) -> AtSplit {
+        let sig = st.fault_sigma();
+        let cov = st.p + st.upsilon * st.s * st.upsilon.transpose();
+        let (a, b) = (kidx::CURRENT_NORTH, kidx::CURRENT_EAST);
+        AtSplit {
+            current: [st.x[a], st.x[b]],
+            current_cov: [[cov[(a, a)], cov[(a, b)]], [cov[(b, a)], cov[(b, b)]]],
+            loss: [st.theta[0], st.theta[1]],
+            loss_sigma: [sig[0], sig[1]],
+        }
+    }
+}
+
+struct Water(WaterBase);
+
+impl PassBase<7, 6, 0> for Water {
+    type Model = WaterKinematic;
+    const SLOTS: [usize; 6] = [0, 1, 2, 3, 4, 5];
+
+    fn model(&self) -> &WaterKinematic {
+        &self.0.filter().model
+    }
+
+    fn prior(&self, fix: &LocalFix) -> AekfState<7, 6, 0> {
+        self.0.prior(fix)
+    }
+
+    fn available(&self, fix: &LocalFix) -> [bool; 6] {
+        self.0.measurement(fix).available
+    }
+
+    fn step(
+        &self,
+        state: &mut AekfState<7, 6, 0>,
+        _input: &(),
+        fix: &LocalFix,
+        dt_s: f64,
+    ) -> Result<StepReport<6, 0>, AekfError> {
+        self.0.step(state, fix, dt_s)
+    }
+
+    fn inputs(&self, steps: &[Step]) -> Vec<()> {
+        vec![(); steps.len()]
+    }
+
+    fn signatures(&self, x: &SVector<f64, 7>) -> [f64; 4] {
+        let (s, c) = x[widx::PSI].sin_cos();
+        [s, c, x[widx::U], x[widx::R]]
+    }
+
+    fn at_split(&self, st: &AekfState<7, 6, 0>) -> AtSplit {
+        let (a, b) = (widx::CURRENT_NORTH, widx::CURRENT_EAST);
+        AtSplit {
+            current: [st.x[a], st.x[b]],
+            current_cov: [[st.p[(a, a)], st.p[(a, b)]], [st.p[(b, a)], st.p[(b, b)]]],
+            ..AtSplit::default()
+        }
+    }
+}
+
+/// Runs the kinetic base with the hypothesis `hyp` over the log.
+pub(super) fn kinetic_pass(prep: &Prepared, hyp: &Hypothesis, opts: PassOptions<'_>) -> PassOut {
+    let config = &opts.config.twin;
+    let options = KineticOptions {
+        effects: hyp.effects,
+        current: hyp.current,
+        losses: hyp.loss,
+    };
+    match KineticBase::new(&config.kinetic, gate(opts.config), options) {
+        Ok(base) => drive(&Kinetic(base), prep, opts),
+        Err(_) => PassOut::failed(),
+    }
+}
+
+/// Runs the water base with the hypothesis `hyp` over the log.
+pub(super) fn water_pass(prep: &Prepared, hyp: &Hypothesis, opts: PassOptions<'_>) -> PassOut {
+    let c = opts.config;
+    let options = WaterOptions {
+        effects: hyp.effects,
+        stw_scale: hyp.stw_scale,
+        sideslip_m: hyp.sideslip_m,
+        current: hyp.current,
+        process_noise: c.water_process_noise,
+        measurement_sigma: c.water_measurement_sigma,
+    };
+    match WaterBase::new(&options, gate(c)) {
+        Ok(base) => drive(&Water(base), prep, opts),
+        Err(_) => PassOut::failed(),
+    }
+}
+
+/// The course gate of the twin the diagnosis is configured with.
+fn gate(config: &DiagnoseConfig) -> CourseGate {
+    CourseGate {
+        min_sog_mps: config.twin.gating.min_sog_for_course_mps,
+    }
+}
+
+/// `log det` of the innovation covariance over the available components.
+fn log_det_available<const M: usize>(sigma: &SMatrix<f64, M, M>, available: &[bool; M]) -> f64 {
+    let Some(l) = cholesky(sigma) else {
+        return f64::INFINITY;
+    };
+    let mut s = 0.0;
+    for i in 0..M {
+        if available[i] {
+            s += 2.0 * l[(i, i)].ln();
+        }
+    }
+    // Masked rows are decoupled (zero rows of H, zero off-diagonals of R):
+    // their diagonal factor is sqrt(R_ii) and does not belong to the
+    // likelihood; it was skipped above.
+    s
+}
+
+/// Drives `base` over the steps, scoring the one-step-ahead predictions.
+fn drive<B, const N: usize, const M: usize, const P: usize>(
+    base: &B,
+    prep: &Prepared,
+    opts: PassOptions<'_>,
+) -> PassOut
+where
+    B: PassBase<N, M, P>,
+{
+    let mut out = PassOut {
+        forecast: opts
+            .config
+            .horizons_s
+            .iter()
+            .map(|h| (*h, 0.0, 0))
+            .collect(),
+        ..PassOut::default()
+    };
+    let steps = &prep.steps;
+    let inputs = base.inputs(steps);
+    let mut state = base.prior(&steps[0].fix);
+    let ln2pi = (2.0 * std::f64::consts::PI).ln();
+    let mut next_forecast_s = f64::NEG_INFINITY;
+    let mut last_speed = None::<(f64, f64)>;
+    let t0 = steps[0].fix.time_s;
+    for k in 1..steps.len() {
+        if k == opts.split {
+            out.at_split = base.at_split(&state);
+            if opts.train_only {
+                break;
+            }
+        }
+        let step = &steps[k].fix;
+        let dt = step.time_s - steps[k - 1].fix.time_s;
+        let Ok(report) = base.step(&mut state, &inputs[k], step, dt) else {
+            return PassOut::failed();
+        };
+        let avail = base.available(step);
+        let dof = avail.iter().filter(|a| **a).count() as f64;
+        let nll = 0.5
+            * (report.nis + log_det_available(&report.innovation_covariance, &avail) + dof * ln2pi);
+        if k < opts.split {
+            out.nll_train += nll;
+            continue;
+        }
+        out.nll_test += nll;
+        out.steps_test += 1;
+        if opts.record {
+            let sig = base.signatures(&state.x);
+            let accel = last_speed
+                .map(|(t, v)| (sig[2] - v) / (step.time_s - t))
+                .unwrap_or(0.0);
+            last_speed = Some((step.time_s, sig[2]));
+            let mut rec = InnovationRecord {
+                time_s: step.time_s,
+                innovation: [0.0; 6],
+                sigma: [0.0; 6],
+                available: [false; 6],
+                nis: report.nis,
+                dof: report.dof,
+                signatures: [sig[0], sig[1], sig[2], sig[3], accel, step.time_s - t0],
+            };
+            for i in 0..M {
+                let slot = B::SLOTS[i];
+                rec.innovation[slot] = report.innovation[i];
+                rec.sigma[slot] = report.innovation_covariance[(i, i)].max(0.0).sqrt();
+                rec.available[slot] = avail[i];
+            }
+            out.records.push(rec);
+        }
+        if step.time_s >= next_forecast_s && !opts.config.horizons_s.is_empty() {
+            next_forecast_s = step.time_s + opts.config.forecast_every_s;
+            score_forecasts(base, prep, &inputs, k, &state, &mut out.forecast);
+        }
+    }
+    if opts.split >= steps.len() {
+        out.at_split = base.at_split(&state);
+    }
+    out
+}
+
+/// Forecasts from step `k`'s estimate through the recorded inputs and adds
+/// the squared position errors at each horizon to `forecast`.
+fn score_forecasts<B, const N: usize, const M: usize, const P: usize>(
+    base: &B,
+    prep: &Prepared,
+    inputs: &[InputOf<B::Model, N, M, P>],
+    k: usize,
+    state: &AekfState<N, M, P>,
+    forecast: &mut [(f64, f64, usize)],
+) where
+    B: PassBase<N, M, P>,
+{
+    let steps = &prep.steps;
+    let now_s = steps[k].fix.time_s;
+    let longest = forecast.iter().map(|f| f.0).fold(0.0, f64::max);
+    let ahead: Vec<usize> = (k + 1..steps.len())
+        .take_while(|j| steps[*j].fix.time_s <= now_s + longest + 1.0)
+        .collect();
+    let model_inputs = ahead
+        .iter()
+        .map(|j| (steps[*j].fix.time_s - steps[*j - 1].fix.time_s, inputs[*j]));
+    // States alone: the forecast's covariance is not used here.
+    let points = predict_states(base.model(), state, now_s, model_inputs);
+    for (h, sq, n) in forecast.iter_mut() {
+        let target = now_s + *h;
+        if let Some((p, j)) = points
+            .iter()
+            .zip(&ahead)
+            .find(|(_, j)| steps[**j].fix.time_s >= target - 1e-9)
+            && steps[*j].fix.time_s - target < 1.0
+        {
+            let pred = base.model().observe(&p.1).predicted;
+            let m = steps[*j].fix.position;
+            *sq += (pred[0] - m.north_m).powi(2) + (pred[1] - m.east_m).powi(2);
+            *n += 1;
+        }
+    }
+}

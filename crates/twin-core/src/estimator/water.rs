@@ -1,0 +1,168 @@
+//! A kinematic vessel through water as an estimator base
+//! ([`WaterKinematic`]): what `diagnose` runs on logs without propeller
+//! data. It needs no vessel parameters; it has no faults.
+
+use nalgebra::{SMatrix, SVector};
+
+use super::{CourseGate, LocalFix, Term};
+use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
+use crate::model::Measurement;
+use crate::models::effects::SensorEffects;
+use crate::models::water_kinematic::{WaterKinematic, idx};
+
+/// What the water base estimates and how it measures.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WaterOptions {
+    /// Effects on the GNSS and heading measurement.
+    pub effects: SensorEffects,
+    /// Reported speed through water divided by the true one.
+    pub stw_scale: f64,
+    /// Sideways speed of the reference point per yaw rate, m/s per rad/s.
+    pub sideslip_m: f64,
+    /// The water current `[north, east]`, m/s.
+    pub current: Term<2>,
+    /// Process noise density of the 7 states (per second).
+    pub process_noise: [f64; 7],
+    /// Measurement noise standard deviations:
+    /// `[position m, SOG m/s, COG rad, heading rad, STW m/s]`.
+    pub measurement_sigma: [f64; 5],
+}
+
+/// The water base.
+#[derive(Debug, Clone)]
+pub struct WaterBase {
+    filter: Aekf<WaterKinematic, 7, 6, 0>,
+    current: Term<2>,
+    gate: CourseGate,
+}
+
+/// Initial variance of an estimated current, (m/s)^2.
+const CURRENT_PRIOR_VARIANCE: f64 = 0.25;
+
+impl WaterBase {
+    /// The base with `options`, masking the course below `gate`'s speed. A
+    /// current that is not estimated has no process noise.
+    pub fn new(options: &WaterOptions, gate: CourseGate) -> Result<Self, AekfError> {
+        let [sp, ssog, scog, shead, sstw] = options.measurement_sigma;
+        let r = SVector::<f64, 6>::from_column_slice(&[
+            sp * sp,
+            sp * sp,
+            ssog * ssog,
+            scog * scog,
+            shead * shead,
+            sstw * sstw,
+        ]);
+        let mut q = SVector::<f64, 7>::from_column_slice(&options.process_noise);
+        if options.current != Term::Free {
+            q[idx::CURRENT_NORTH] = 0.0;
+            q[idx::CURRENT_EAST] = 0.0;
+        }
+        let config = AekfConfig::<7, 6, 0> {
+            process_noise_density: SMatrix::from_diagonal(&q),
+            measurement_noise: SMatrix::from_diagonal(&r),
+            forgetting_time_constant_s: 60.0,
+            initial_fault_covariance: SMatrix::zeros(),
+            anti_windup_ratio: 0.1,
+            excitation_sigma: 0.03,
+            noise_adaptation: None,
+        };
+        let model = WaterKinematic {
+            effects: options.effects,
+            stw_scale: options.stw_scale,
+            sideslip_m: options.sideslip_m,
+        };
+        Ok(Self {
+            filter: Aekf::new(model, config)?,
+            current: options.current,
+            gate,
+        })
+    }
+
+    /// The filter.
+    pub fn filter(&self) -> &Aekf<WaterKinematic, 7, 6, 0> {
+        &self.filter
+    }
+
+    /// `[north, east, sog, cog, heading, stw]`; position always, the rest
+    /// where measured, the course only above the gate's speed.
+    pub fn measurement(&self, fix: &LocalFix) -> Measurement<6> {
+        Measurement {
+            values: SVector::<f64, 6>::from_column_slice(&[
+                fix.position.north_m,
+                fix.position.east_m,
+                fix.sog_mps.unwrap_or(0.0),
+                fix.cog_rad.unwrap_or(0.0),
+                fix.heading_rad.unwrap_or(0.0),
+                fix.stw_mps.unwrap_or(0.0),
+            ]),
+            available: [
+                true,
+                true,
+                fix.sog_mps.is_some(),
+                self.gate.course_available(fix),
+                fix.heading_rad.is_some(),
+                fix.stw_mps.is_some(),
+            ],
+        }
+    }
+
+    /// The first estimate from a fix: position as measured; heading from the
+    /// sensor (less its offset), else the course; speed through water from
+    /// the log (less its scale), else the speed over ground (less its
+    /// scale); the current as its term says.
+    pub fn prior(&self, fix: &LocalFix) -> AekfState<7, 6, 0> {
+        let model = &self.filter.model;
+        let r = &self.filter.config.measurement_noise;
+        let mut x0 = SVector::<f64, 7>::zeros();
+        x0[idx::NORTH] = fix.position.north_m;
+        x0[idx::EAST] = fix.position.east_m;
+        x0[idx::PSI] = fix
+            .heading_rad
+            .map(|h| crate::geodesy::wrap_pi(h - model.effects.heading_offset_rad))
+            .or(fix.cog_rad)
+            .unwrap_or(0.0);
+        x0[idx::U] = fix
+            .stw_mps
+            .map(|v| v / model.stw_scale)
+            .or(fix.sog_mps.map(|s| s / model.effects.sog_scale))
+            .unwrap_or(0.0);
+        let current_variance = match self.current {
+            Term::Free => CURRENT_PRIOR_VARIANCE,
+            Term::Off => 1e-12,
+            Term::Fixed(c) => {
+                x0[idx::CURRENT_NORTH] = c[0];
+                x0[idx::CURRENT_EAST] = c[1];
+                1e-12
+            }
+        };
+        let p0 = SVector::<f64, 7>::from_column_slice(&[
+            r[(0, 0)],
+            r[(1, 1)],
+            if fix.heading_rad.is_some() {
+                r[(4, 4)]
+            } else {
+                0.25
+            },
+            0.25,
+            0.01,
+            current_variance,
+            current_variance,
+        ]);
+        AekfState::new(
+            &self.filter.config,
+            x0,
+            SMatrix::from_diagonal(&p0),
+            SVector::zeros(),
+        )
+    }
+
+    /// One step to `fix`, `dt_s` after the estimate.
+    pub fn step(
+        &self,
+        state: &mut AekfState<7, 6, 0>,
+        fix: &LocalFix,
+        dt_s: f64,
+    ) -> Result<StepReport<6, 0>, AekfError> {
+        self.filter.step(state, &(), &self.measurement(fix), dt_s)
+    }
+}
