@@ -91,7 +91,7 @@ pub mod net {
 
 /// A simulated trial as it goes on the wire, and the offline path over it.
 pub mod wire {
-    use std::time::{Duration, Instant};
+    use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
     use twin_core::twin::{TwinConfig, VesselTwin};
     use twin_sim::{Scenario, SensorEvent, SimRun};
@@ -220,6 +220,71 @@ pub mod wire {
         .await
     }
 
+    /// The wall clock, s since the Unix epoch.
+    pub fn now_s() -> f64 {
+        SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .expect("a clock after 1970")
+            .as_secs_f64()
+    }
+
+    /// A live fix (`replay` false) stamped `time_s`, `i` steps of 0.2 m
+    /// along a line north from 59.9 N 10.7 E, at 1 m/s (so 0.2 s apart).
+    /// The daemon holds a live fix to its clock: stamp it near [`now_s`].
+    pub fn live_fix(time_s: f64, i: usize) -> Vec<u8> {
+        serde_json::to_vec(&twin_wire::messages::GnssMessage {
+            time: twin_wire::time::format_rfc3339(time_s).expect("a time to format"),
+            lat_deg: 59.9 + i as f64 * 0.2 / 111_320.0,
+            lon_deg: 10.7,
+            sog_mps: 1.0,
+            cog_rad: 0.0,
+            heading_rad: Some(0.0),
+            yaw_rate_radps: None,
+            hdop: Some(0.8),
+            replay: false,
+        })
+        .expect("JSON")
+    }
+
+    /// The time of a JSON input message (a fix or shaft speeds), s.
+    pub fn time_of(bytes: &[u8]) -> f64 {
+        let v: serde_json::Value = serde_json::from_slice(bytes).expect("a JSON message");
+        twin_wire::time::parse_rfc3339(v["time"].as_str().expect("a time")).expect("RFC 3339")
+    }
+
+    /// A JSON input message with its fields changed by `edit`.
+    pub fn edited(bytes: &[u8], edit: impl FnOnce(&mut serde_json::Value)) -> Vec<u8> {
+        let mut v: serde_json::Value = serde_json::from_slice(bytes).expect("a JSON message");
+        edit(&mut v);
+        serde_json::to_vec(&v).expect("JSON")
+    }
+
+    /// A JSON input message stamped `time_s` instead.
+    pub fn stamped(bytes: &[u8], time_s: f64) -> Vec<u8> {
+        edited(bytes, |v| {
+            v["time"] = twin_wire::time::format_rfc3339(time_s)
+                .expect("a time to format")
+                .into()
+        })
+    }
+
+    /// `msgs` with every time moved by `by_s`.
+    pub fn shifted(msgs: &[(&'static str, Vec<u8>)], by_s: f64) -> Messages {
+        msgs.iter()
+            .map(|(t, b)| (*t, stamped(b, time_of(b) + by_s)))
+            .collect()
+    }
+
+    /// The index of the `n`-th GNSS message of `msgs`.
+    pub fn nth_fix(msgs: &[(&'static str, Vec<u8>)], n: usize) -> usize {
+        msgs.iter()
+            .enumerate()
+            .filter(|(_, (t, _))| *t == "gnss")
+            .nth(n)
+            .expect("that many fixes")
+            .0
+    }
+
     /// Publishes a vessel's messages in order through `session`, once the
     /// daemon's subscription is visible.
     pub async fn publish(session: &zenoh::Session, vessel: &str, msgs: &[(&'static str, Vec<u8>)]) {
@@ -236,5 +301,148 @@ pub mod wire {
             let p = if *topic == "gnss" { &gnss } else { &act };
             p.put(bytes.clone()).await.expect("put");
         }
+    }
+}
+
+/// The daemon (`twind::run`) in-process on a peer session listening on a
+/// loopback port, with a session to publish inputs and one to watch the
+/// outputs, both connected to it.
+pub mod daemon {
+    use std::time::Duration;
+
+    use tokio_util::sync::CancellationToken;
+    use twin_wire::outputs::{FaultMessage, StateMessage};
+    use twind::forecast::FaultPathLoad;
+    use twind::settings::Settings;
+    use zenoh::Session;
+    use zenoh::sample::Sample;
+
+    use crate::net::{config, free_port};
+    use crate::wire::Outputs;
+
+    /// A running daemon and its two neighbours.
+    pub struct Rig {
+        /// The daemon's session.
+        pub daemon: Session,
+        /// Publishes inputs.
+        pub input: Session,
+        /// Watches outputs.
+        pub output: Session,
+        cancel: CancellationToken,
+        handle: tokio::task::JoinHandle<anyhow::Result<twind::RunSummary>>,
+    }
+
+    /// Waits (10 s at most) until `publisher` sees a subscriber.
+    pub async fn wait_matching(publisher: &zenoh::pubsub::Publisher<'_>) {
+        crate::wire::wait_matching(publisher, Duration::from_secs(10)).await;
+    }
+
+    /// A daemon with `settings`.
+    pub async fn rig(settings: Settings) -> Rig {
+        rig_observed(settings, FaultPathLoad::new()).await
+    }
+
+    /// [`rig`], the daemon's dispatcher reporting to `load`.
+    pub async fn rig_observed(settings: Settings, load: FaultPathLoad) -> Rig {
+        let port = free_port();
+        let daemon = zenoh::open(config("peer", &[port], &[])).await.unwrap();
+        let input = zenoh::open(config("peer", &[], &[port])).await.unwrap();
+        let output = zenoh::open(config("peer", &[], &[port])).await.unwrap();
+        let cancel = CancellationToken::new();
+        let handle = tokio::spawn(twind::run(twind::RunConfig {
+            load,
+            ..twind::RunConfig::new(settings, daemon.clone(), cancel.clone())
+        }));
+        Rig {
+            daemon,
+            input,
+            output,
+            cancel,
+            handle,
+        }
+    }
+
+    impl Rig {
+        /// Publishes the messages of `vessel` in order.
+        pub async fn publish(&self, vessel: &str, msgs: &[(&'static str, Vec<u8>)]) {
+            crate::wire::publish(&self.input, vessel, msgs).await;
+        }
+
+        /// Subscribes to everything the daemon says about `vessel`, and
+        /// waits until the daemon's session sees the subscription.
+        pub async fn collect(&self, vessel: &str) -> Outputs {
+            self.watch(
+                &format!("asv/{vessel}/twin/**"),
+                &format!("asv/{vessel}/twin/state"),
+            )
+            .await
+        }
+
+        /// Subscribes to `key` and waits until the daemon's session sees
+        /// the subscription on `probe` (a key the daemon puts on).
+        pub async fn watch(&self, key: &str, probe: &str) -> Outputs {
+            let sub = self
+                .output
+                .declare_subscriber(key.to_string())
+                .with(zenoh::handlers::FifoChannel::new(100_000))
+                .await
+                .unwrap();
+            let probe = self
+                .daemon
+                .declare_publisher(probe.to_string())
+                .await
+                .unwrap();
+            wait_matching(&probe).await;
+            sub
+        }
+
+        /// Stops the daemon (after letting the last messages through) and
+        /// closes every session; what the daemon did.
+        pub async fn stop(self) -> twind::RunSummary {
+            tokio::time::sleep(Duration::from_millis(300)).await;
+            self.cancel.cancel();
+            let summary = tokio::time::timeout(Duration::from_secs(20), self.handle)
+                .await
+                .unwrap()
+                .unwrap()
+                .unwrap();
+            self.input.close().await.unwrap();
+            self.output.close().await.unwrap();
+            self.daemon.close().await.unwrap();
+            summary
+        }
+    }
+
+    /// The last fault message among `samples`.
+    pub fn last_fault(samples: &[Sample]) -> FaultMessage {
+        let s = samples
+            .iter()
+            .rev()
+            .find(|s| s.key_expr().as_str().ends_with("/twin/fault"))
+            .expect("a fault message");
+        serde_json::from_slice(&s.payload().to_bytes()).unwrap()
+    }
+
+    /// Every output on the twin topic ending in `suffix`, decoded.
+    pub fn outputs<T: serde::de::DeserializeOwned>(samples: &[Sample], suffix: &str) -> Vec<T> {
+        samples
+            .iter()
+            .filter(|s| s.key_expr().as_str().ends_with(suffix))
+            .map(|s| serde_json::from_slice(&s.payload().to_bytes()).unwrap())
+            .collect()
+    }
+
+    /// Every state among `samples`.
+    pub fn states(samples: &[Sample]) -> Vec<StateMessage> {
+        outputs(samples, "/twin/state")
+    }
+
+    /// What `sub` holds now.
+    pub fn drain(sub: &Outputs) -> Vec<Sample> {
+        let mut v = Vec::new();
+        while let Ok(Some(s)) = sub.try_recv() {
+            v.push(s);
+        }
+        v
     }
 }

@@ -7,9 +7,8 @@
 
 use std::time::Duration;
 
-use tokio_util::sync::CancellationToken;
 use twin_core::diagnose::MonitorConfig;
-use twin_tests::net::{config, free_port};
+use twin_tests::daemon::{drain, last_fault, outputs, rig, rig_observed, states, wait_matching};
 use twin_tests::wire::{
     Messages, messages, offline, receive_until, receive_until_fault, scenario as scenario_file,
     simulate as scenario,
@@ -18,120 +17,6 @@ use twin_wire::outputs::{FaultMessage, FindingsMessage, PredictionMessage, State
 use twind::forecast::{FaultPathLoad, SATURATED_AFTER};
 use twind::settings::Settings;
 use zenoh::Session;
-
-struct Rig {
-    daemon: Session,
-    input: Session,
-    output: Session,
-    cancel: CancellationToken,
-    handle: tokio::task::JoinHandle<anyhow::Result<twind::RunSummary>>,
-}
-
-async fn wait_matching(publisher: &zenoh::pubsub::Publisher<'_>) {
-    twin_tests::wire::wait_matching(publisher, Duration::from_secs(10)).await;
-}
-
-async fn rig(settings: Settings) -> Rig {
-    rig_observed(settings, FaultPathLoad::new()).await
-}
-
-/// [`rig`], the daemon's dispatcher reporting to `load`.
-async fn rig_observed(settings: Settings, load: FaultPathLoad) -> Rig {
-    let port = free_port();
-    let daemon = zenoh::open(config("peer", &[port], &[])).await.unwrap();
-    let input = zenoh::open(config("peer", &[], &[port])).await.unwrap();
-    let output = zenoh::open(config("peer", &[], &[port])).await.unwrap();
-    let cancel = CancellationToken::new();
-    let handle = tokio::spawn(twind::run(twind::RunConfig {
-        load,
-        ..twind::RunConfig::new(settings, daemon.clone(), cancel.clone())
-    }));
-    Rig {
-        daemon,
-        input,
-        output,
-        cancel,
-        handle,
-    }
-}
-
-impl Rig {
-    /// Publishes the messages of `vessel` in order.
-    async fn publish(&self, vessel: &str, msgs: &[(&'static str, Vec<u8>)]) {
-        twin_tests::wire::publish(&self.input, vessel, msgs).await;
-    }
-
-    /// Subscribes to everything the daemon says about `vessel`, and waits
-    /// until the daemon's session sees the subscription.
-    async fn collect(
-        &self,
-        vessel: &str,
-    ) -> zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>> {
-        let sub = self
-            .output
-            .declare_subscriber(format!("asv/{vessel}/twin/**"))
-            .with(zenoh::handlers::FifoChannel::new(100_000))
-            .await
-            .unwrap();
-        let probe = self
-            .daemon
-            .declare_publisher(format!("asv/{vessel}/twin/state"))
-            .await
-            .unwrap();
-        wait_matching(&probe).await;
-        sub
-    }
-
-    async fn stop(self) -> twind::RunSummary {
-        // Let the last messages through before asking the daemon to stop.
-        tokio::time::sleep(Duration::from_millis(300)).await;
-        self.cancel.cancel();
-        let summary = tokio::time::timeout(Duration::from_secs(20), self.handle)
-            .await
-            .unwrap()
-            .unwrap()
-            .unwrap();
-        self.input.close().await.unwrap();
-        self.output.close().await.unwrap();
-        self.daemon.close().await.unwrap();
-        summary
-    }
-}
-
-fn last_fault(samples: &[zenoh::sample::Sample]) -> FaultMessage {
-    let s = samples
-        .iter()
-        .rev()
-        .find(|s| s.key_expr().as_str().ends_with("/twin/fault"))
-        .expect("a fault message");
-    serde_json::from_slice(&s.payload().to_bytes()).unwrap()
-}
-
-/// Every output on the twin topic ending in `suffix`, decoded.
-fn outputs<T: serde::de::DeserializeOwned>(
-    samples: &[zenoh::sample::Sample],
-    suffix: &str,
-) -> Vec<T> {
-    samples
-        .iter()
-        .filter(|s| s.key_expr().as_str().ends_with(suffix))
-        .map(|s| serde_json::from_slice(&s.payload().to_bytes()).unwrap())
-        .collect()
-}
-
-fn states(samples: &[zenoh::sample::Sample]) -> Vec<StateMessage> {
-    outputs(samples, "/twin/state")
-}
-
-fn drain(
-    sub: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
-) -> Vec<zenoh::sample::Sample> {
-    let mut v = Vec::new();
-    while let Ok(Some(s)) = sub.try_recv() {
-        v.push(s);
-    }
-    v
-}
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_replayed_trial_gives_the_daemon_the_offline_estimates() {

@@ -65,19 +65,27 @@ fn every_shipped_file_loads_and_is_documented() {
     }
 }
 
+/// Item 6: the default is safe as shipped: a peer that listens on the
+/// loopback interface only and connects to nothing it discovers, so that
+/// nothing on the network can reach the daemon (Zenoh has no log-in
+/// there).
 #[test]
-fn the_default_is_a_listening_peer_with_multicast_scouting() {
+fn the_default_is_a_peer_reachable_from_this_host_only() {
     let c = load("zenoh.json5");
     assert_eq!(get(&c, "mode"), json!("peer"));
     assert_eq!(
         get(&c, "listen/endpoints"),
-        json!({"peer": ["tcp/0.0.0.0:7447"], "router": ["tcp/0.0.0.0:7447"]})
+        json!({"peer": ["tcp/127.0.0.1:7447"], "router": ["tcp/127.0.0.1:7447"]})
     );
     assert_eq!(get(&c, "connect/endpoints"), json!([]));
-    // Zenoh's defaults for scouting (DEFAULT_CONFIG.json5), written out.
-    for key in ["scouting/multicast/enabled", "scouting/gossip/enabled"] {
-        assert_eq!(get(&c, key), json!(true), "{key}");
-    }
+    // It answers scouts (with its loopback address) but connects to nobody
+    // it discovers, directly or by gossip.
+    assert_eq!(get(&c, "scouting/multicast/enabled"), json!(true));
+    assert_eq!(
+        get(&c, "scouting/multicast/autoconnect"),
+        json!({"router": [], "peer": [], "client": []})
+    );
+    assert_eq!(get(&c, "scouting/gossip/enabled"), json!(false));
 }
 
 #[test]
@@ -132,7 +140,7 @@ fn the_client_and_router_files_say_what_the_readme_says() {
 }
 
 #[test]
-fn the_acl_router_denies_by_default_and_names_three_identities() {
+fn the_acl_router_denies_by_default_and_gives_each_vessel_one_owner() {
     let c = load("zenoh-acl.json5");
     assert_eq!(get(&c, "mode"), json!("router"));
     assert_eq!(get(&c, "access_control/enabled"), json!(true));
@@ -151,8 +159,12 @@ fn the_acl_router_denies_by_default_and_names_three_identities() {
         .flatten()
         .filter_map(Value::as_str)
         .collect();
-    assert_eq!(users, ["twind", "otter-1", "operator"]);
-    // The daemon publishes under asv/*/twin/** only, otter-1 its GNSS only.
+    assert_eq!(
+        users,
+        [
+            "twind", "twind-2", "twind", "twind-2", "otter-1", "otter-2", "operator"
+        ]
+    );
     let rules = get(&c, "access_control/rules");
     let rule = |id: &str| {
         rules
@@ -163,17 +175,39 @@ fn the_acl_router_denies_by_default_and_names_three_identities() {
             .unwrap_or_else(|| panic!("no rule {id}"))
             .clone()
     };
+    // Each daemon puts and answers under its own vessel's twin/** only,
+    // each vessel its own inputs only.
     assert_eq!(
-        rule("daemon-publish-outputs")["key_exprs"],
-        json!(["asv/*/twin/**"])
+        rule("twind-publish")["key_exprs"],
+        json!(["asv/otter-1/twin/**", "asv/@twind/twind/stats"])
     );
     assert_eq!(
-        rule("otter-1-put-gnss")["key_exprs"],
-        json!(["asv/otter-1/gnss"])
+        rule("twind-2-publish")["key_exprs"],
+        json!(["asv/otter-2/twin/**", "asv/@twind/twind-2/stats"])
     );
-    // Every allowed put is a rule of this file: nothing else is allowed.
+    assert_eq!(
+        rule("otter-1-put-inputs")["key_exprs"],
+        json!([
+            "asv/otter-1/gnss",
+            "asv/otter-1/nmea",
+            "asv/otter-1/actuators"
+        ])
+    );
+    // No rule lets anyone put (or answer, or hold a token) on a wildcard of
+    // vessels' outputs: every output rule names its vessel.
     for r in rules.as_array().unwrap() {
         assert_eq!(r["permission"], json!("allow"), "{r}");
+        let sends = r["flows"] == json!(["ingress"])
+            && r["messages"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .any(|m| m == "put" || m == "reply" || m == "liveliness_token");
+        if sends {
+            for k in r["key_exprs"].as_array().unwrap() {
+                assert!(!k.as_str().unwrap().starts_with("asv/*"), "{r}");
+            }
+        }
     }
 }
 

@@ -7,11 +7,16 @@
 //!   as a non-root user;
 //! - `docker/Dockerfile.dockerignore` keeps out no source the build needs
 //!   (including the files the crates embed with `include_bytes!`);
-//! - `docker/compose.yaml` parses as YAML; the router is the official Zenoh
-//!   image of the Zenoh version in `Cargo.lock` running
-//!   `config/zenoh-router.json5`; the daemon and the replay run binaries of
-//!   the image with files that exist, connect to the router's service name
-//!   and port, and the daemon's state directory is a named volume.
+//! - `docker/compose.yaml` parses as YAML and runs the safe configuration:
+//!   the router is the official Zenoh image of the Zenoh version in
+//!   `Cargo.lock` running `config/zenoh-acl.json5` (log-in, deny by
+//!   default) with its password dictionary on the secrets volume; the
+//!   daemon and the replay run binaries of the image with files that exist,
+//!   connect to the router's service name and port, each logged in as an
+//!   identity the secrets service makes and the access rules allow to do
+//!   what it does (the daemon: the replayed vessel's outputs and its own
+//!   statistics; the replay: that vessel's inputs); the daemon's state
+//!   directory is a named volume.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -329,15 +334,80 @@ fn locked_zenoh_version() -> String {
     version.trim_end_matches('"').to_string()
 }
 
+/// The names in `key_exprs` of the ACL rules of `config` that `subject`'s
+/// policies give it, for `message` and `flow`.
+fn acl_keys(config: &zenoh::Config, username: &str, message: &str, flow: &str) -> Vec<String> {
+    let get = |key: &str| -> serde_json::Value {
+        serde_json::from_str(&config.get_json(key).unwrap()).unwrap()
+    };
+    let (subjects, rules, policies) = (
+        get("access_control/subjects"),
+        get("access_control/rules"),
+        get("access_control/policies"),
+    );
+    let mine: Vec<&str> = subjects
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|s| {
+            s["usernames"]
+                .as_array()
+                .is_none_or(|u| u.iter().any(|n| n == username))
+        })
+        .filter_map(|s| s["id"].as_str())
+        .collect();
+    let rule_ids: Vec<&str> = policies
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|p| {
+            p["subjects"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .any(|s| mine.contains(&s.as_str().unwrap()))
+        })
+        .flat_map(|p| p["rules"].as_array().unwrap().iter())
+        .filter_map(|r| r.as_str())
+        .collect();
+    rules
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|r| rule_ids.contains(&r["id"].as_str().unwrap()))
+        .filter(|r| {
+            r["messages"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .any(|m| m == message)
+        })
+        .filter(|r| r["flows"].as_array().unwrap().iter().any(|f| f == flow))
+        .flat_map(|r| r["key_exprs"].as_array().unwrap().iter())
+        .filter_map(|k| k.as_str().map(String::from))
+        .collect()
+}
+
+/// The value after `flag` in `words`.
+fn after<'a>(words: &'a [String], flag: &str) -> &'a str {
+    &words[words
+        .iter()
+        .position(|w| w == flag)
+        .unwrap_or_else(|| panic!("no {flag} in {words:?}"))
+        + 1]
+}
+
 #[test]
-fn the_compose_file_wires_router_daemon_and_replay() {
+#[allow(clippy::too_many_lines)] // One check per service of the compose file, in its order.
+fn the_compose_file_wires_router_daemon_and_replay_safely() {
     let compose: Yaml = serde_yaml::from_str(&read("docker/compose.yaml")).expect("valid YAML");
     let services = &compose["services"];
     let image = image();
     let docker_dir = repo().join("docker");
 
     // The router: the official image, the Zenoh version of Cargo.lock, the
-    // shipped router configuration mounted where its command reads it.
+    // shipped access-controlled router configuration mounted where its
+    // command reads it, its password dictionary in the secrets volume.
     let router = &services["router"];
     let router_image = router["image"].as_str().unwrap();
     assert_eq!(
@@ -345,22 +415,59 @@ fn the_compose_file_wires_router_daemon_and_replay() {
         format!("eclipse/zenoh:{}", locked_zenoh_version())
     );
     let command = strings(&router["command"]);
-    let config_in_container = &command[command.iter().position(|a| a == "-c").unwrap() + 1];
-    let mount = strings(&router["volumes"])
-        .into_iter()
-        .find(|v| v.split(':').nth(1) == Some(config_in_container.as_str()))
+    let config_in_container = after(&command, "-c");
+    let router_mounts = strings(&router["volumes"]);
+    let mount = router_mounts
+        .iter()
+        .find(|v| v.split(':').nth(1) == Some(config_in_container))
         .expect("the router's configuration is mounted");
     let host = mount.split(':').next().unwrap();
     let host_file = docker_dir.join(host).canonicalize().unwrap();
-    assert_eq!(host_file, repo().join("config/zenoh-router.json5"));
-    let router_config = zenoh::Config::from_file(&host_file).unwrap();
+    assert_eq!(host_file, repo().join("config/zenoh-acl.json5"));
+    let acl = zenoh::Config::from_file(&host_file).unwrap();
+    assert_eq!(acl.get_json("access_control/enabled").unwrap(), "true");
+    assert_eq!(
+        acl.get_json("access_control/default_permission").unwrap(),
+        "\"deny\""
+    );
+    let dictionary = after(&command, "--cfg")
+        .strip_prefix("transport/auth/usrpwd/dictionary_file:")
+        .expect("the dictionary is set")
+        .trim_matches('"')
+        .to_string();
+    let secrets_volume = |mounts: &[String], path: &str| -> String {
+        mounts
+            .iter()
+            .find(|v| {
+                let target = v.split(':').nth(1).unwrap_or_default();
+                path.starts_with(&format!("{target}/"))
+            })
+            .unwrap_or_else(|| panic!("{path} is on no volume of {mounts:?}"))
+            .split(':')
+            .next()
+            .unwrap()
+            .to_string()
+    };
+    let secrets = secrets_volume(&router_mounts, &dictionary);
+    assert!(compose["volumes"].get(secrets.as_str()).is_some());
     let listen: Vec<String> =
-        serde_json::from_str(&router_config.get_json("listen/endpoints").unwrap()).unwrap();
+        serde_json::from_str(&acl.get_json("listen/endpoints").unwrap()).unwrap();
     let router_port = listen[0].rsplit(':').next().unwrap();
 
+    // The secrets service makes a log-in file per identity from the
+    // shipped client file, on the same volume.
+    let maker = &services["secrets"];
+    let script = strings(&maker["command"]).join(" ");
+    assert!(script.contains("config/zenoh-usrpwd.json5"), "{script}");
+    assert!(repo().join("config/zenoh-usrpwd.json5").is_file());
+    let made =
+        |user: &str| script.contains(&format!(" {user} ")) || script.contains(&format!(" {user};"));
+
     // Our services: the image built from this Dockerfile, programs of it,
-    // files that exist, the router by service name and port.
+    // files that exist, the router by service name and port, each logged in
+    // as an identity of the router's file that the secrets service makes.
     let mut volumes_used = Vec::new();
+    let mut logins = Vec::new();
     for name in ["twind", "replay"] {
         let service = &services[name];
         let build = &service["build"];
@@ -397,19 +504,52 @@ fn the_compose_file_wires_router_daemon_and_replay() {
                 );
             }
         }
-        let connect = &words[words.iter().position(|w| w == "--connect").unwrap() + 1];
-        assert_eq!(connect, &format!("tcp/router:{router_port}"), "{name}");
-        for v in strings(&service["volumes"]) {
+        assert_eq!(
+            after(&words, "--connect"),
+            format!("tcp/router:{router_port}"),
+            "{name}"
+        );
+        let mounts = strings(&service["volumes"]);
+        let login = after(&words, "--config");
+        assert_eq!(secrets_volume(&mounts, login), secrets, "{name}");
+        let user = std::path::Path::new(login)
+            .file_stem()
+            .unwrap()
+            .to_string_lossy()
+            .into_owned();
+        assert!(made(&user), "{name}: the secrets service makes no {user}");
+        for v in mounts {
             volumes_used.push((name, v));
         }
+        logins.push((name, user, words.clone()));
         println!("{name}: {}", words.join(" "));
     }
+    // The daemon's identity may publish its statistics and the replayed
+    // vessel's outputs; the replay's identity may put that vessel's inputs.
+    let (_, daemon_user, daemon_words) = &logins[0];
+    let (_, vessel_user, replay_words) = &logins[1];
+    assert_eq!(after(daemon_words, "--id"), daemon_user);
+    let vessel = after(replay_words, "--vessel");
+    assert_eq!(vessel, vessel_user);
+    let daemon_puts = acl_keys(&acl, daemon_user, "put", "ingress");
+    assert!(
+        daemon_puts.contains(&format!("asv/{vessel}/twin/**")),
+        "{daemon_puts:?}"
+    );
+    assert!(daemon_puts.contains(&format!("asv/@twind/{daemon_user}/stats")));
+    let vessel_puts = acl_keys(&acl, vessel_user, "put", "ingress");
+    assert!(
+        vessel_puts.contains(&format!("asv/{vessel}/gnss")),
+        "{vessel_puts:?}"
+    );
+    assert!(vessel_puts.contains(&format!("asv/{vessel}/actuators")));
+
     // The daemon keeps its calibrations on a named volume.
     let twind_words = strings(&services["twind"]["command"]);
-    let state_dir = &twind_words[twind_words.iter().position(|w| w == "--state-dir").unwrap() + 1];
+    let state_dir = after(&twind_words, "--state-dir");
     let (_, state_volume) = volumes_used
         .iter()
-        .find(|(n, v)| *n == "twind" && v.split(':').nth(1) == Some(state_dir.as_str()))
+        .find(|(n, v)| *n == "twind" && v.split(':').nth(1) == Some(state_dir))
         .expect("the state directory is a volume");
     let volume_name = state_volume.split(':').next().unwrap();
     assert!(

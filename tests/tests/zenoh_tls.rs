@@ -23,8 +23,7 @@ use rcgen::{
 use serde_json::Value;
 use tokio_util::sync::CancellationToken;
 use twin_tests::net::free_port;
-use twin_tests::wire::wait_matching;
-use twin_wire::messages::GnssMessage;
+use twin_tests::wire::{live_fix, now_s, wait_matching};
 use twind::settings::Settings;
 use zenoh::Session;
 
@@ -123,20 +122,9 @@ fn tls(pki: &Pki, name: &str, mode: &str, port: u16) -> zenoh::Config {
     c
 }
 
+/// A live fix, `i` steps along the line of [`live_fix`], stamped now.
 fn fix(i: usize) -> Vec<u8> {
-    let t_ms = 200 * i as u64;
-    serde_json::to_vec(&GnssMessage {
-        time: format!("2024-06-01T12:00:{:02}.{:03}Z", t_ms / 1000, t_ms % 1000),
-        lat_deg: 59.9 + i as f64 * 0.2 / 111_320.0,
-        lon_deg: 10.7,
-        sog_mps: 1.0,
-        cog_rad: 0.0,
-        heading_rad: Some(0.0),
-        yaw_rate_radps: None,
-        hdop: Some(0.8),
-        replay: false,
-    })
-    .unwrap()
+    live_fix(now_s(), i)
 }
 
 async fn refused(what: &str, config: zenoh::Config) {

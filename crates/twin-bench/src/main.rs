@@ -5,6 +5,7 @@
 //! cargo run --release -p twin-bench -- numpy     # the AEKF step against NumPy
 //! cargo run --release -p twin-bench -- core      # estimator and offline path, with targets
 //! cargo run --release -p twin-bench -- daemon    # twind under load against raw Zenoh
+//! cargo run --release -p twin-bench -- flood     # a real vessel's latency under a flood of new ids
 //! ```
 
 use std::path::PathBuf;
@@ -43,6 +44,11 @@ enum Bench {
     /// 10 to 10,000 vessels; each path's maximum sustained rate and their
     /// ratio. One table with the project's targets.
     Daemon(DaemonArgs),
+    /// One real vessel's fix -> fault latency (p50/p99/max) and the
+    /// process's memory before, during and after a burst of messages on new
+    /// vessel ids (default 10,000 one-byte payloads), and the liveliness
+    /// tokens left behind.
+    Flood(FloodArgs),
     /// One point of `daemon`, run in a child process; prints one JSON line.
     #[command(hide = true)]
     DaemonPoint(DaemonPointArgs),
@@ -115,6 +121,44 @@ fn run_daemon(args: DaemonArgs) -> anyhow::Result<ExitCode> {
     print!("{}", report.table());
     // A missed target is reported, not an error.
     Ok(ExitCode::SUCCESS)
+}
+
+#[derive(Debug, Args)]
+struct FloodArgs {
+    /// New vessel ids in the burst, one message each.
+    #[arg(long, default_value_t = 10_000)]
+    ids: usize,
+    /// Bytes of every flood message (each is that many `x`).
+    #[arg(long, default_value_t = 1)]
+    payload_bytes: usize,
+    /// The real vessel's fixes per second.
+    #[arg(long, default_value_t = 10.0)]
+    rate_hz: f64,
+    /// Length of the quiet phases before and after, s.
+    #[arg(long, default_value_t = 10.0)]
+    quiet_s: f64,
+    /// How long the flood phase lasts after the burst was sent, s.
+    #[arg(long, default_value_t = 15.0)]
+    settle_s: f64,
+}
+
+fn run_flood(args: FloodArgs) -> anyhow::Result<ExitCode> {
+    if cfg!(debug_assertions) {
+        eprintln!("warning: a debug build; the figures mean little (use --release)");
+    }
+    let opts = twin_bench::daemon::flood::FloodOptions {
+        ids: args.ids,
+        payload: vec![b'x'; args.payload_bytes],
+        rate_hz: args.rate_hz,
+        quiet_s: args.quiet_s,
+        settle_s: args.settle_s,
+    };
+    let report = twin_bench::daemon::flood::run(&opts)?;
+    print!("{}", report.table());
+    use std::io::Write as _;
+    std::io::stdout().flush()?;
+    // The daemon and its sessions were left running: leave now.
+    std::process::exit(0);
 }
 
 #[derive(Debug, Args)]
@@ -300,6 +344,7 @@ fn main() -> ExitCode {
         Bench::Numpy(args) => run_numpy(args),
         Bench::Core(args) => run_core(args),
         Bench::Daemon(args) => run_daemon(args),
+        Bench::Flood(args) => run_flood(args),
         Bench::DaemonPoint(args) => run_daemon_point(args),
     };
     // Printed here, once, without the backtrace anyhow would add under

@@ -321,8 +321,9 @@ pub struct Calibration {
     /// Which estimator learnt it.
     pub source: FaultSource,
     /// Fault estimate: the extended twin's `[port loss, starboard loss,
-    /// surge damping error, yaw damping error]`, or the seed method's input
-    /// faults `[theta_a, theta_r]`.
+    /// surge damping error, yaw damping error, thrust error, mass error]`
+    /// (`models::otter_twin::fault`), or the seed method's input faults
+    /// `[theta_a, theta_r]`.
     pub theta: Vec<f64>,
     /// Fault covariance, row-major (`theta.len()` squared entries).
     pub theta_covariance: Vec<f64>,

@@ -13,6 +13,10 @@ use std::str::FromStr;
 /// The default key prefix.
 pub const DEFAULT_PREFIX: &str = "asv";
 
+/// The verbatim chunk under the prefix that holds the daemons' own keys
+/// ([`KeySpace::daemon_stats`]).
+pub const DAEMON_CHUNK: &str = "@twind";
+
 /// The longest vessel id accepted, in characters.
 pub const MAX_VESSEL_ID_LEN: usize = 64;
 
@@ -276,6 +280,21 @@ impl KeySpace {
         self.key(vessel, Topic::TwinFinding)
     }
 
+    /// `{prefix}/@twind/{daemon}/stats`: the daemon's own counters (what it
+    /// refused before any vessel could be named or admitted). `@twind` is a
+    /// verbatim chunk: no wildcard matches it, so subscriptions to
+    /// `{prefix}/*/...` or `{prefix}/**` never receive it by accident (and
+    /// the daemon's input subscriber never hears its own statistics); ask
+    /// for `{prefix}/@twind/*/stats`. `daemon` follows the vessel id rule.
+    pub fn daemon_stats(&self, daemon: &VesselId) -> String {
+        format!("{}/{DAEMON_CHUNK}/{daemon}/stats", self.prefix)
+    }
+
+    /// `{prefix}/@twind/*/stats`: every daemon's statistics.
+    pub fn all_daemon_stats(&self) -> String {
+        format!("{}/{DAEMON_CHUNK}/*/stats", self.prefix)
+    }
+
     /// Parses a received key into its vessel id and topic. The key must be
     /// exactly `{prefix}/{vessel}/{suffix}` with a valid id and a known topic.
     pub fn parse(&self, key: &str) -> Result<(VesselId, Topic), KeyError> {
@@ -343,6 +362,11 @@ mod tests {
         assert_eq!(ks.twin_stats(&v), "asv/otter1/twin/stats");
         assert_eq!(ks.twin_finding(&v), "asv/otter1/twin/finding");
         assert_eq!(ks.all_vessels(Topic::Gnss), "asv/*/gnss");
+        let d = VesselId::new("north").unwrap();
+        assert_eq!(ks.daemon_stats(&d), "asv/@twind/north/stats");
+        assert_eq!(ks.all_daemon_stats(), "asv/@twind/*/stats");
+        // Not a vessel's key: a daemon's statistics are never taken for input.
+        assert!(ks.parse(&ks.daemon_stats(&d)).is_err());
         let fleet = KeySpace::new("fleet/north.sea").unwrap();
         assert_eq!(fleet.twin_state(&v), "fleet/north.sea/otter1/twin/state");
     }

@@ -1,7 +1,8 @@
 //! The twin's output payloads, as published by the daemon on
-//! `{prefix}/{vessel}/twin/{state,fault,prediction,alarm,stats}` and as
-//! printed by the offline tools. JSON, with times in RFC 3339 UTC and units
-//! in every field name. Built from `twin_core`'s plain reports; the core
+//! `{prefix}/{vessel}/twin/{state,fault,prediction,alarm,stats,finding}`
+//! (and the daemon's own `{prefix}/@twind/{daemon}/stats`) and as printed by
+//! the offline tools. JSON ([`CONTENT_TYPE`]), with times in RFC 3339 UTC
+//! and units in every field name. Built from `twin_core`'s plain reports; the core
 //! never sees these types.
 
 use std::collections::BTreeMap;
@@ -11,6 +12,11 @@ use twin_core::decision::{StatusChange, ThrusterStatus};
 use twin_core::twin::{FaultReport, FaultSource, ForecastPoint, StateReport, ThrusterEstimate};
 
 use crate::time::format_rfc3339;
+
+/// The content type of every output payload: the daemon sets it as the
+/// Zenoh encoding of each put and query reply, so that a generic client
+/// (the Zenoh REST plugin, a bridge) shows them as JSON.
+pub const CONTENT_TYPE: &str = "application/json";
 
 fn time_string(time_s: f64) -> String {
     format_rfc3339(time_s).unwrap_or_else(|_| "invalid".to_string())
@@ -396,15 +402,60 @@ impl AlarmMessage {
     }
 }
 
-/// `twin/stats`: what the twin of one vessel accepted and rejected.
+/// `twin/stats`: what the twin of one vessel received, used and refused.
+///
+/// Every input message ends one way: used by the twin (`accepted`, per
+/// topic) or refused (`rejected`, one reason per message), so that per
+/// message `received = accepted + rejected` (summed over topics and
+/// reasons). A GNSS fix or an actuator command is accepted only once the
+/// twin has taken it (a duplicate, a time going backwards or a position
+/// jump is a rejection). An NMEA payload is accepted when at least one of
+/// its sentences gave a record; one with none is rejected with the first
+/// sentence's reason (`empty_nmea` when it holds no sentence at all). What
+/// the sentences of accepted NMEA payloads then gave is in [`NmeaStats`].
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct StatsMessage {
     /// Vessel id.
     pub vessel: String,
-    /// Accepted messages per topic.
+    /// Messages received per input topic (`gnss`, `nmea`, `actuators`).
+    #[serde(default)]
+    pub received: BTreeMap<String, u64>,
+    /// Messages the twin used, per input topic.
     pub accepted: BTreeMap<String, u64>,
-    /// Rejected messages per reason.
+    /// Messages refused, per reason.
     pub rejected: BTreeMap<String, u64>,
+    /// What the sentences of the accepted NMEA payloads gave.
+    #[serde(default, skip_serializing_if = "NmeaStats::is_empty")]
+    pub nmea: NmeaStats,
+}
+
+/// The sentences of a vessel's accepted NMEA payloads: how many were
+/// refused (a payload can hold good and bad ones), and the fixes and shaft
+/// speeds assembled from the rest, with the twin's refusals of those fixes.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct NmeaStats {
+    /// Sentences refused inside accepted payloads, per reason.
+    #[serde(default)]
+    pub sentences_rejected: BTreeMap<String, u64>,
+    /// Fixes assembled and used by the twin.
+    #[serde(default)]
+    pub fixes: u64,
+    /// Fixes assembled and refused by the twin, per reason.
+    #[serde(default)]
+    pub fixes_rejected: BTreeMap<String, u64>,
+    /// Shaft speeds (or thrusts) assembled and used by the twin.
+    #[serde(default)]
+    pub propellers: u64,
+    /// Shaft speeds assembled and refused by the twin, per reason.
+    #[serde(default)]
+    pub propellers_rejected: BTreeMap<String, u64>,
+}
+
+impl NmeaStats {
+    /// Nothing counted (the vessel sent no NMEA).
+    pub fn is_empty(&self) -> bool {
+        *self == Self::default()
+    }
 }
 
 impl StatsMessage {
@@ -412,6 +463,58 @@ impl StatsMessage {
     pub fn total_rejected(&self) -> u64 {
         self.rejected.values().sum()
     }
+
+    /// Total messages received.
+    pub fn total_received(&self) -> u64 {
+        self.received.values().sum()
+    }
+
+    /// Total messages accepted.
+    pub fn total_accepted(&self) -> u64 {
+        self.accepted.values().sum()
+    }
+}
+
+/// `{prefix}/@twind/{daemon}/stats`: what a daemon refused before a
+/// message could reach a vessel's twin (a key that is no vessel's input, a
+/// vessel not admitted, too many vessels), published every
+/// `stats_interval_s` of wall clock. `received = routed + refused` (summed
+/// over reasons).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct DaemonStatsMessage {
+    /// The daemon's id (`[daemon] id`, else its Zenoh session id).
+    pub daemon: String,
+    /// Wall-clock time of the statistics, RFC 3339.
+    pub time: String,
+    /// Vessels admitted and running.
+    pub vessels: usize,
+    /// The most vessels it serves at once (`[vessels] max_vessels`).
+    pub max_vessels: usize,
+    /// Messages received on its input subscription.
+    pub received: u64,
+    /// Of those, handed to a vessel's twin.
+    pub routed: u64,
+    /// Of those, refused by the daemon, per reason.
+    pub refused: BTreeMap<String, u64>,
+    /// The most recently refused senders, newest first (at most a few
+    /// dozen: enough to see which vessel is being refused, bounded whatever
+    /// a flood sends).
+    pub refused_recently: Vec<RefusedSender>,
+    /// Calibration saves that failed.
+    pub save_failures: u64,
+}
+
+/// A vessel id (or, when no id could be read, the key) the daemon refused.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RefusedSender {
+    /// The vessel id, or the key (at most 128 bytes) when it names none.
+    pub sender: String,
+    /// The reason of its last refusal.
+    pub reason: String,
+    /// Its refusals while it has been in the list.
+    pub count: u64,
+    /// Wall-clock time of its last refusal, RFC 3339.
+    pub last: String,
 }
 
 /// One finding of a diagnosis, as published on `twin/finding` and printed by

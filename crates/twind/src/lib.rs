@@ -51,6 +51,7 @@ use tokio_util::sync::CancellationToken;
 use tokio_util::task::TaskTracker;
 use twin_wire::Topic;
 use zenoh::Session;
+use zenoh::bytes::Encoding;
 use zenoh::key_expr::KeyExpr;
 
 use crate::settings::Settings;
@@ -111,6 +112,156 @@ impl StateSlot {
     }
 }
 
+/// The latest fault, alarm and finding of every vessel, for the queryable:
+/// a controller or an operator that starts after the last alarm learns at
+/// once that a propeller is in fault (the fault gives both thrusters'
+/// status; the alarm is the last status change). One reply per key, as a
+/// query's default consolidation keeps. Each vessel writes its own slot, as
+/// with [`LatestStates`].
+#[derive(Debug, Clone, Default)]
+pub struct LatestOutputs(Arc<RwLock<HashMap<String, OutputSlot>>>);
+
+/// One vessel's latest outputs (each empty until its first).
+#[derive(Debug, Clone, Default)]
+pub struct OutputSlot(Arc<Mutex<[Vec<u8>; 3]>>);
+
+/// Which of a vessel's latest outputs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kept {
+    /// `twin/fault`.
+    Fault,
+    /// `twin/alarm`.
+    Alarm,
+    /// `twin/finding`.
+    Finding,
+}
+
+impl Kept {
+    /// Every kind, in the slot's order.
+    pub const ALL: [Kept; 3] = [Kept::Fault, Kept::Alarm, Kept::Finding];
+
+    /// The topic it is published on.
+    pub fn topic(self) -> Topic {
+        match self {
+            Kept::Fault => Topic::TwinFault,
+            Kept::Alarm => Topic::TwinAlarm,
+            Kept::Finding => Topic::TwinFinding,
+        }
+    }
+
+    fn index(self) -> usize {
+        self as usize
+    }
+}
+
+impl LatestOutputs {
+    /// The slot of `vessel`, made empty the first time.
+    pub fn slot(&self, vessel: &str) -> OutputSlot {
+        if let Ok(map) = self.0.read()
+            && let Some(slot) = map.get(vessel)
+        {
+            return slot.clone();
+        }
+        match self.0.write() {
+            Ok(mut map) => map.entry(vessel.to_string()).or_default().clone(),
+            Err(_) => OutputSlot::default(),
+        }
+    }
+
+    /// Every vessel's latest outputs, sorted by vessel then kind; empty
+    /// ones left out.
+    pub fn snapshot(&self) -> Vec<(String, Kept, Vec<u8>)> {
+        let slots: Vec<(String, OutputSlot)> = match self.0.read() {
+            Ok(map) => map.iter().map(|(k, v)| (k.clone(), v.clone())).collect(),
+            Err(_) => Vec::new(),
+        };
+        let mut out = Vec::new();
+        for (vessel, slot) in slots {
+            let Ok(kept) = slot.0.lock() else { continue };
+            for kind in Kept::ALL {
+                let bytes = &kept[kind.index()];
+                if !bytes.is_empty() {
+                    out.push((vessel.clone(), kind, bytes.clone()));
+                }
+            }
+        }
+        out.sort_by(|a, b| (&a.0, a.1.index()).cmp(&(&b.0, b.1.index())));
+        out
+    }
+}
+
+impl OutputSlot {
+    /// Replaces the payload of `kind`.
+    pub fn set(&self, kind: Kept, json: &[u8]) {
+        if let Ok(mut kept) = self.0.lock() {
+            let bytes = &mut kept[kind.index()];
+            bytes.clear();
+            bytes.extend_from_slice(json);
+        }
+    }
+}
+
+/// Calibrations that could not be saved or restored, across the daemon:
+/// the failed saves counted (on the daemon's statistics), and each kind
+/// logged at most once a minute, so that a full disk or a missing directory
+/// writes one line a minute, not one per vessel per save.
+#[derive(Debug, Clone)]
+pub struct SaveFailures(Arc<Mutex<StorageLog>>);
+
+#[derive(Debug)]
+struct StorageLog {
+    failed_saves: u64,
+    saves: crate::stats::RateLimit,
+    loads: crate::stats::RateLimit,
+}
+
+impl Default for SaveFailures {
+    fn default() -> Self {
+        let limit = || crate::stats::RateLimit::new(crate::stats::LOG_EVERY, 1);
+        Self(Arc::new(Mutex::new(StorageLog {
+            failed_saves: 0,
+            saves: limit(),
+            loads: limit(),
+        })))
+    }
+}
+
+impl SaveFailures {
+    /// Counts a failed save of `vessel` and logs it if a minute has passed
+    /// since the last one logged.
+    pub fn failed(&self, vessel: &str, error: &dyn std::fmt::Display) {
+        let Ok(mut log) = self.0.lock() else {
+            return;
+        };
+        log.failed_saves += 1;
+        let failures = log.failed_saves;
+        if let Some(not_logged) = log.saves.check(std::time::Instant::now()) {
+            tracing::error!(
+                vessel,
+                failures,
+                not_logged,
+                "calibration not saved: {error}"
+            );
+        }
+    }
+
+    /// Logs that the calibration of `vessel` was not restored, if a minute
+    /// has passed since the last such line.
+    pub fn not_restored(&self, vessel: &str, error: &dyn std::fmt::Display) {
+        let Ok(mut log) = self.0.lock() else {
+            return;
+        };
+        if let Some(not_logged) = log.loads.check(std::time::Instant::now()) {
+            tracing::warn!(vessel, not_logged, "calibration not restored: {error}");
+        }
+    }
+
+    /// Failed saves so far.
+    pub fn count(&self) -> u64 {
+        self.0.lock().map_or(0, |log| log.failed_saves)
+    }
+}
+
 /// One output as published, handed to in-process listeners (the web page).
 #[derive(Debug, Clone)]
 pub struct OutputEvent {
@@ -128,8 +279,11 @@ pub type OutputTap = Option<tokio::sync::broadcast::Sender<OutputEvent>>;
 /// What a run did, for the caller's final log line and for tests.
 #[derive(Debug, Default, Clone)]
 pub struct RunSummary {
-    /// Messages the daemon refused before any vessel could be named
-    /// (bad key, bad vessel id, too many vessels).
+    /// Messages received on the input subscription.
+    pub received: u64,
+    /// Messages the daemon refused before any vessel's twin saw them (bad
+    /// key, a vessel not admitted: invalid first message, too many vessels,
+    /// admission rate), by reason.
     pub refused: Counters,
     /// Messages routed to vessels.
     pub routed: u64,
@@ -189,15 +343,20 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         load,
     } = config;
     let settings = Arc::new(settings);
-    let state_key = format!(
-        "{}/{}/twin/state",
-        settings.keys.prefix(),
-        settings.vessels.own
+    let daemon_id = match &settings.daemon.id {
+        Some(id) => id.clone(),
+        None => session.zid().to_string(),
+    };
+    let daemon_stats_key = settings.keys.daemon_stats(
+        &twin_wire::VesselId::new(&daemon_id)
+            .map_err(|e| anyhow::anyhow!("the daemon's id {daemon_id:?}: {e}"))?,
     );
+    // One queryable for the outputs kept (state, fault, alarm, finding).
+    let outputs_key = format!("{}/{}/twin/*", settings.keys.prefix(), settings.vessels.own);
     let queryable = session
-        .declare_queryable(&state_key)
+        .declare_queryable(&outputs_key)
         .await
-        .map_err(|e| anyhow::anyhow!("cannot declare the queryable {state_key}: {e}"))?;
+        .map_err(|e| anyhow::anyhow!("cannot declare the queryable {outputs_key}: {e}"))?;
 
     let forecaster =
         crate::forecast::Forecaster::start(settings.publish.forecast_threads, load.clone())
@@ -208,6 +367,8 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
     let diagnose_slots = Arc::new(tokio::sync::Semaphore::new(
         settings.diagnose.max_concurrent,
     ));
+    let outputs = LatestOutputs::default();
+    let save_failures = SaveFailures::default();
     let dispatcher = crate::dispatch::Dispatcher::new(
         settings.clone(),
         crate::dispatch::VesselSpawner {
@@ -216,10 +377,12 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
             shared: crate::vessel::VesselShared {
                 session: session.clone(),
                 latest: latest.clone(),
+                outputs: outputs.clone(),
                 tap,
                 diagnose_slots,
                 forecaster,
                 load,
+                save_failures: save_failures.clone(),
             },
             done_tx,
         },
@@ -234,16 +397,43 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
                 anyhow::anyhow!("cannot subscribe to {}: {e}", input_key_expr(&settings))
             })?
     };
-    tracing::info!(inputs = %input_key_expr(&settings), "twind running");
+    tracing::info!(
+        inputs = %input_key_expr(&settings),
+        daemon = %daemon_stats_key,
+        "twind running"
+    );
 
-    // The queryable answers from the shared map; it needs no vessel task.
-    let answer_latest = tokio::spawn(answer_state_queries(
+    // The queryable answers from the shared maps; it needs no vessel task.
+    let answer_latest = tokio::spawn(answer_latest_queries(
         queryable,
         latest.clone(),
+        outputs.clone(),
         settings.keys.clone(),
         shutdown.clone(),
     ));
 
+    let publish_daemon_stats = |dispatcher: &crate::dispatch::Dispatcher| {
+        let message = dispatcher.daemon_stats(&daemon_id, save_failures.count());
+        let put = crate::vessel::encode_json(&message, 1024).map(|bytes| {
+            session
+                .put(&daemon_stats_key, bytes)
+                .encoding(Encoding::APPLICATION_JSON)
+        });
+        async move {
+            match put {
+                Ok(put) => {
+                    if let Err(e) = put.await {
+                        tracing::warn!("daemon statistics not published: {e}");
+                    }
+                }
+                Err(e) => tracing::error!("cannot encode the daemon's statistics: {e}"),
+            }
+        }
+    };
+    let mut stats_tick = tokio::time::interval(std::time::Duration::from_secs_f64(
+        settings.publish.stats_interval_s,
+    ));
+    stats_tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     loop {
         tokio::select! {
             _ = shutdown.cancelled() => break,
@@ -254,6 +444,7 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
                 }
                 dispatcher.forget_ended(ended);
             }
+            _ = stats_tick.tick() => publish_daemon_stats(&dispatcher).await,
         }
     }
 
@@ -263,6 +454,7 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
     if let Err(e) = subscriber.undeclare().await {
         tracing::warn!("the input subscriber was not undeclared: {e}");
     }
+    publish_daemon_stats(&dispatcher).await;
     let mut summary = dispatcher.close();
     tracker.close();
     tracker.wait().await;
@@ -271,6 +463,7 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
     }
     answer_latest.abort();
     tracing::info!(
+        received = summary.received,
         routed = summary.routed,
         refused = summary.refused.total_rejected(),
         vessels = summary.vessels.len(),
@@ -279,11 +472,12 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
     Ok(summary)
 }
 
-/// Answers queries on the state queryable from the latest states, until
-/// `shutdown` or the queryable ends.
-async fn answer_state_queries(
+/// Answers queries on the latest outputs' queryable from the shared maps,
+/// until `shutdown` or the queryable ends.
+async fn answer_latest_queries(
     queryable: zenoh::query::Queryable<zenoh::handlers::FifoChannelHandler<zenoh::query::Query>>,
     latest: LatestStates,
+    outputs: LatestOutputs,
     keys: twin_wire::KeySpace,
     shutdown: CancellationToken,
 ) {
@@ -292,22 +486,43 @@ async fn answer_state_queries(
             _ = shutdown.cancelled() => break,
             q = queryable.recv_async() => match q { Ok(q) => q, Err(_) => break },
         };
-        let replies: Vec<(String, Vec<u8>)> = latest
-            .snapshot()
-            .into_iter()
-            .filter_map(|(vessel, bytes)| {
-                let id = twin_wire::VesselId::new(&vessel).ok()?;
-                let key = keys.twin_state(&id);
-                let ke = KeyExpr::try_from(key.as_str()).ok()?;
-                query.key_expr().intersects(&ke).then_some((key, bytes))
-            })
-            .collect();
-        for (key, bytes) in replies {
-            if let Err(e) = query.reply(key, bytes).await {
+        for (key, bytes) in latest_replies(&keys, &latest, &outputs, query.key_expr()) {
+            if let Err(e) = query
+                .reply(key, bytes)
+                .encoding(Encoding::APPLICATION_JSON)
+                .await
+            {
                 tracing::warn!("query not answered: {e}");
             }
         }
     }
+}
+
+/// The replies to a query on `asked`: every kept output (latest state,
+/// fault, alarms, finding) whose key it intersects, as (key, payload).
+fn latest_replies(
+    keys: &twin_wire::KeySpace,
+    latest: &LatestStates,
+    outputs: &LatestOutputs,
+    asked: &KeyExpr<'_>,
+) -> Vec<(String, Vec<u8>)> {
+    let states = latest
+        .snapshot()
+        .into_iter()
+        .map(|(vessel, bytes)| (vessel, Topic::TwinState, bytes));
+    let others = outputs
+        .snapshot()
+        .into_iter()
+        .map(|(vessel, kind, bytes)| (vessel, kind.topic(), bytes));
+    states
+        .chain(others)
+        .filter_map(|(vessel, topic, bytes)| {
+            let id = twin_wire::VesselId::new(&vessel).ok()?;
+            let key = keys.key(&id, topic);
+            let ke = KeyExpr::try_from(key.as_str()).ok()?;
+            asked.intersects(&ke).then_some((key, bytes))
+        })
+        .collect()
 }
 
 /// Helpers shared by the unit tests.

@@ -29,6 +29,11 @@ struct Cli {
     /// Keep calibrations in this directory (overrides the settings).
     #[arg(long, value_name = "DIR")]
     state_dir: Option<PathBuf>,
+    /// The daemon's id, in its statistics key `{prefix}/@twind/{ID}/stats`
+    /// (overrides `[daemon] id`; default: its Zenoh session id). Behind an
+    /// access-controlled router, its log-in name.
+    #[arg(long, value_name = "ID")]
+    id: Option<String>,
     /// Run the demo: an embedded Zenoh peer, two bundled trials replayed
     /// through it, live per-thruster estimates printed.
     #[arg(long)]
@@ -86,6 +91,10 @@ fn settings(cli: &Cli) -> anyhow::Result<Settings> {
     if let Some(dir) = &cli.state_dir {
         s.persistence.dir = Some(dir.clone());
     }
+    if let Some(id) = &cli.id {
+        twin_wire::keys::validate_vessel_id(id).with_context(|| format!("--id {id:?}"))?;
+        s.daemon.id = Some(id.clone());
+    }
     Ok(s)
 }
 
@@ -138,6 +147,9 @@ async fn main() -> anyhow::Result<()> {
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,zenoh=warn")),
         )
         .with_writer(std::io::stderr)
+        // Colour only for a person at a terminal: a log file or a
+        // journal gets plain text.
+        .with_ansi(std::io::stderr().is_terminal())
         .init();
     let cli = Cli::parse();
     let settings = settings(&cli)?;

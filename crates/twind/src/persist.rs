@@ -4,10 +4,18 @@
 //! saved periodically and on shutdown, restored when the vessel's twin
 //! starts, so a restart does not re-learn for minutes.
 //!
-//! One JSON file per vessel, `{dir}/{vessel}.json`, written atomically (a
-//! temporary file renamed over the old one), so a crash mid-write leaves the
-//! previous calibration intact.
+//! One JSON file per vessel, `{dir}/{vessel}.json`, written atomically and
+//! durably: a temporary file is written and flushed to the disk (`fsync`),
+//! renamed over the old one, and the directory flushed too, so that a crash
+//! or a power cut (routine on boats) leaves either the previous calibration
+//! or the new one, never an empty or a missing file.
+//!
+//! A file that cannot be read as a calibration (damaged, another vessel's,
+//! an unknown version) is never overwritten: it is moved aside as
+//! `{vessel}.json.damaged-{n}` (the first `n` free) for a person to look
+//! at, and the vessel starts from scratch.
 
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -72,6 +80,16 @@ pub enum PersistError {
         /// The file.
         path: PathBuf,
         /// What is wrong.
+        message: String,
+    },
+    /// The file was not a calibration and has been moved aside.
+    #[error("{path}: not a calibration file ({message}); kept as {kept}")]
+    Damaged {
+        /// Where it was.
+        path: PathBuf,
+        /// Where it is now.
+        kept: PathBuf,
+        /// What is wrong with it.
         message: String,
     },
 }
@@ -213,7 +231,7 @@ pub fn path_for(dir: &Path, vessel: &str) -> PathBuf {
     dir.join(format!("{vessel}.json"))
 }
 
-/// Saves atomically.
+/// Saves atomically and durably (see the module doc).
 pub fn save(dir: &Path, vessel: &str, calibration: &Calibration) -> Result<(), PersistError> {
     let io = |path: &Path| {
         let path = path.to_path_buf();
@@ -226,32 +244,74 @@ pub fn save(dir: &Path, vessel: &str, calibration: &Calibration) -> Result<(), P
         message: e.to_string(),
     })?;
     let tmp = dir.join(format!(".{vessel}.json.tmp"));
-    std::fs::write(&tmp, text).map_err(io(&tmp))?;
+    {
+        let mut f = std::fs::File::create(&tmp).map_err(io(&tmp))?;
+        f.write_all(text.as_bytes()).map_err(io(&tmp))?;
+        // The data on the disk before the name points at it.
+        f.sync_all().map_err(io(&tmp))?;
+    }
     let target = path_for(dir, vessel);
-    std::fs::rename(&tmp, &target).map_err(io(&target))
+    std::fs::rename(&tmp, &target).map_err(io(&target))?;
+    // The rename itself on the disk.
+    std::fs::File::open(dir)
+        .and_then(|d| d.sync_all())
+        .map_err(io(dir))
 }
 
-/// Loads the calibration of `vessel`, if there is one.
+/// Loads the calibration of `vessel`, if there is one. A file that is not
+/// a calibration is moved aside ([`PersistError::Damaged`]).
 pub fn load(dir: &Path, vessel: &str) -> Result<Option<Calibration>, PersistError> {
     let path = path_for(dir, vessel);
-    let text = match std::fs::read_to_string(&path) {
+    let text = match std::fs::read(&path) {
         Ok(t) => t,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
         Err(source) => return Err(PersistError::Io { path, source }),
     };
-    let file: CalibrationFile = serde_json::from_str(&text).map_err(|e| PersistError::Format {
-        path: path.clone(),
-        message: e.to_string(),
-    })?;
+    match parse(&text, vessel) {
+        Ok(c) => Ok(Some(c)),
+        Err(message) => {
+            let kept = move_aside(&path)?;
+            Err(PersistError::Damaged {
+                path,
+                kept,
+                message,
+            })
+        }
+    }
+}
+
+/// A calibration file's bytes, checked to be `vessel`'s calibration.
+fn parse(text: &[u8], vessel: &str) -> Result<Calibration, String> {
+    let file: CalibrationFile = serde_json::from_slice(text).map_err(|e| e.to_string())?;
     if file.vessel != vessel {
-        return Err(PersistError::Format {
-            path,
-            message: format!("belongs to vessel {:?}", file.vessel),
-        });
+        return Err(format!("belongs to vessel {:?}", file.vessel));
     }
     file.to_calibration()
-        .map(Some)
-        .map_err(|message| PersistError::Format { path, message })
+}
+
+/// Renames `path` to the first free `{path}.damaged-{n}`, durably.
+fn move_aside(path: &Path) -> Result<PathBuf, PersistError> {
+    let io = |p: &Path| {
+        let p = p.to_path_buf();
+        move |source| PersistError::Io { path: p, source }
+    };
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let dir = path.parent().unwrap_or(Path::new("."));
+    for n in 1..10_000 {
+        let aside = dir.join(format!("{name}.damaged-{n}"));
+        if aside.exists() {
+            continue;
+        }
+        std::fs::rename(path, &aside).map_err(io(path))?;
+        std::fs::File::open(dir)
+            .and_then(|d| d.sync_all())
+            .map_err(io(dir))?;
+        return Ok(aside);
+    }
+    Err(PersistError::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::other("no free name to move the damaged file aside"),
+    })
 }
 
 #[cfg(test)]
@@ -294,12 +354,53 @@ mod tests {
         save(&dir, "otter-1", &calibration()).unwrap();
         assert_eq!(load(&dir, "otter-1").unwrap(), Some(calibration()));
         assert_eq!(load(&dir, "otter-2").unwrap(), None);
-        // A damaged file is an error, not a silent reset.
-        std::fs::write(path_for(&dir, "otter-3"), "{not json").unwrap();
-        assert!(load(&dir, "otter-3").is_err());
-        // A file renamed to another vessel is refused.
-        std::fs::copy(path_for(&dir, "otter-1"), path_for(&dir, "otter-4")).unwrap();
-        assert!(load(&dir, "otter-4").is_err());
+        // No temporary file is left behind.
+        let names: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(names, ["otter-1.json"]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A file that is not this vessel's calibration is an error, not a
+    /// silent reset, and it is kept aside (each damaged file under its own
+    /// name), never overwritten by the next save.
+    #[test]
+    fn a_damaged_file_is_moved_aside_and_kept() {
+        let dir = std::env::temp_dir().join(format!("twind-damaged-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let damaged = path_for(&dir, "otter-3");
+        for (round, text) in ["{not json", "", "{\"version\": 1}"]
+            .into_iter()
+            .enumerate()
+        {
+            std::fs::write(&damaged, text).unwrap();
+            let err = load(&dir, "otter-3").unwrap_err();
+            let kept = dir.join(format!("otter-3.json.damaged-{}", round + 1));
+            assert!(
+                matches!(&err, PersistError::Damaged { kept: k, .. } if *k == kept),
+                "{err}"
+            );
+            assert_eq!(std::fs::read_to_string(&kept).unwrap(), text);
+            assert!(!damaged.exists());
+            // Nothing there now: the vessel starts from scratch.
+            assert_eq!(load(&dir, "otter-3").unwrap(), None);
+        }
+        save(&dir, "otter-3", &calibration()).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(dir.join("otter-3.json.damaged-1")).unwrap(),
+            "{not json"
+        );
+        // A file renamed to another vessel is refused and kept aside too.
+        std::fs::copy(path_for(&dir, "otter-3"), path_for(&dir, "otter-4")).unwrap();
+        assert!(matches!(
+            load(&dir, "otter-4"),
+            Err(PersistError::Damaged { .. })
+        ));
+        assert!(dir.join("otter-4.json.damaged-1").exists());
+        assert_eq!(load(&dir, "otter-3").unwrap(), Some(calibration()));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -59,6 +59,14 @@ struct RawSettings {
     twin: RawTwin,
     #[serde(default)]
     diagnose: RawDiagnose,
+    #[serde(default)]
+    daemon: RawDaemon,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawDaemon {
+    id: Option<String>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -88,6 +96,9 @@ struct RawVessels {
     stale_after_s: Option<f64>,
     max_vessels: Option<usize>,
     queue_depth: Option<usize>,
+    known: Option<Vec<String>>,
+    admit_per_s: Option<f64>,
+    admit_burst: Option<usize>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -106,6 +117,8 @@ struct RawPublish {
 #[serde(deny_unknown_fields)]
 struct RawInput {
     max_payload_bytes: Option<usize>,
+    live_max_ahead_s: Option<f64>,
+    live_max_behind_s: Option<f64>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -142,10 +155,37 @@ pub struct VesselSettings {
     pub drop_after_silence_s: f64,
     /// A vessel with no fix for this long is published as stale, s.
     pub stale_after_s: f64,
-    /// Most vessels served at once; messages for more are rejected.
+    /// Most vessels admitted at once, not counting those of `known`;
+    /// messages for more are refused.
     pub max_vessels: usize,
     /// Messages queued per vessel before the dispatcher waits for it.
     pub queue_depth: usize,
+    /// Vessel ids always admitted (even beyond `max_vessels` and the
+    /// admission rate), sorted.
+    pub known: Vec<String>,
+    /// Vessels not in `known` admitted per second, on average (a token
+    /// bucket refilled at this rate)...
+    pub admit_per_s: f64,
+    /// ... and at most this many at once (the bucket's size, full at start).
+    pub admit_burst: usize,
+}
+
+/// Who the daemon is.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DaemonSettings {
+    /// Its id in `{prefix}/@twind/{id}/stats`; `None`: its Zenoh session id.
+    pub id: Option<String>,
+}
+
+/// Bounds on the time stamps of live input.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LiveTimeSettings {
+    /// A live message (not a replay) stamped more than this ahead of the
+    /// daemon's clock is refused (`time_ahead_of_clock`), s.
+    pub max_ahead_s: f64,
+    /// A live message stamped more than this behind the daemon's clock is
+    /// refused (`time_behind_clock`), s.
+    pub max_behind_s: f64,
 }
 
 /// What is published and how often.
@@ -223,6 +263,10 @@ pub struct Settings {
     pub publish: PublishSettings,
     /// Largest payload accepted, bytes; larger ones are refused unread.
     pub max_payload_bytes: usize,
+    /// Bounds on live time stamps against the daemon's clock.
+    pub live_time: LiveTimeSettings,
+    /// Who the daemon is.
+    pub daemon: DaemonSettings,
     /// Calibration storage.
     pub persistence: PersistenceSettings,
     /// Web page.
@@ -332,6 +376,30 @@ impl Settings {
                 reason: format!("must be between 256 B and 16 MiB, got {max_payload_bytes}"),
             });
         }
+        let live_time = LiveTimeSettings {
+            max_ahead_s: positive(
+                "input.live_max_ahead_s",
+                raw.input.live_max_ahead_s.unwrap_or(30.0),
+            )?,
+            max_behind_s: positive(
+                "input.live_max_behind_s",
+                raw.input.live_max_behind_s.unwrap_or(600.0),
+            )?,
+        };
+        let daemon = DaemonSettings {
+            id: match raw.daemon.id {
+                Some(id) => {
+                    twin_wire::keys::validate_vessel_id(&id).map_err(|e| {
+                        SettingsError::Invalid {
+                            key: "daemon.id",
+                            reason: format!("{id:?}: {e}"),
+                        }
+                    })?;
+                    Some(id)
+                }
+                None => None,
+            },
+        };
         let persistence = PersistenceSettings {
             dir: raw.persistence.dir,
             save_interval_s: positive(
@@ -359,6 +427,8 @@ impl Settings {
             vessels,
             publish,
             max_payload_bytes,
+            live_time,
+            daemon,
             persistence,
             web,
             twin,
@@ -385,8 +455,24 @@ fn vessel_settings(raw: RawVessels) -> Result<VesselSettings, SettingsError> {
         stale_after_s: positive("vessels.stale_after_s", raw.stale_after_s.unwrap_or(2.0))?,
         max_vessels: at_least_one("vessels.max_vessels", raw.max_vessels.unwrap_or(20_000))?,
         queue_depth: at_least_one("vessels.queue_depth", raw.queue_depth.unwrap_or(256))?,
+        known: known_vessels(raw.known.unwrap_or_default())?,
+        admit_per_s: positive("vessels.admit_per_s", raw.admit_per_s.unwrap_or(50.0))?,
+        admit_burst: at_least_one("vessels.admit_burst", raw.admit_burst.unwrap_or(500))?,
     };
     Ok(vessels)
+}
+
+/// `[vessels] known`: valid ids, sorted, once each.
+fn known_vessels(mut known: Vec<String>) -> Result<Vec<String>, SettingsError> {
+    for id in &known {
+        twin_wire::keys::validate_vessel_id(id).map_err(|e| SettingsError::Invalid {
+            key: "vessels.known",
+            reason: format!("{id:?}: {e}"),
+        })?;
+    }
+    known.sort();
+    known.dedup();
+    Ok(known)
 }
 
 /// `n`, refused when zero.
@@ -607,6 +693,11 @@ mod tests {
                 "[diagnose]\nmax_concurrent = 0\n",
                 "diagnose.max_concurrent",
             ),
+            ("[vessels]\nknown = [\"a b\"]\n", "vessels.known"),
+            ("[vessels]\nadmit_per_s = 0\n", "vessels.admit_per_s"),
+            ("[vessels]\nadmit_burst = 0\n", "vessels.admit_burst"),
+            ("[input]\nlive_max_ahead_s = -1\n", "input.live_max_ahead_s"),
+            ("[daemon]\nid = \"a/b\"\n", "daemon.id"),
         ];
         for (text, key) in cases {
             let err = Settings::from_toml(text).unwrap_err().to_string();

@@ -32,8 +32,9 @@ use twin_core::decision::StatusChange;
 use twin_core::diagnose::{
     BaseModel, DiagEvent, DiagnoseConfig, LiveMonitor, Trigger, diagnose, prepare,
 };
+use twin_core::otter::OtterParams;
 use twin_core::sample::{GnssFix, PropellerSpeeds};
-use twin_core::twin::{StepOutput, VesselTwin};
+use twin_core::twin::{Rejection, StepOutput, VesselTwin};
 use twin_wire::assemble::{Assembled, AssemblerConfig, FixAssembler};
 use twin_wire::measurement::Measurement;
 use twin_wire::measurement::ThrustCommand;
@@ -44,15 +45,18 @@ use twin_wire::outputs::{
 };
 use twin_wire::read::{NmeaDecoder, ReadOptions};
 use twin_wire::{Topic, VesselId};
+use zenoh::bytes::Encoding;
 use zenoh::key_expr::KeyExpr;
 use zenoh::qos::CongestionControl;
 use zenoh::{Session, Wait};
 
 use crate::forecast::{FaultPathLoad, ForecastJob, Forecaster};
 use crate::persist;
-use crate::settings::Settings;
-use crate::stats::Counters;
-use crate::{LatestStates, OutputEvent, OutputTap, StateSlot};
+use crate::settings::{LiveTimeSettings, Settings};
+use crate::stats::{Counters, Refused};
+use crate::{
+    Kept, LatestOutputs, LatestStates, OutputEvent, OutputSlot, OutputTap, SaveFailures, StateSlot,
+};
 
 /// What the dispatcher hands a vessel's task.
 #[derive(Debug)]
@@ -66,6 +70,8 @@ pub enum VesselEvent {
     },
     /// A message refused before it could be handed over (e.g. too large).
     Refused {
+        /// The topic it came on.
+        topic: Topic,
         /// The reason, as counted.
         reason: &'static str,
         /// A detail for the log.
@@ -163,7 +169,12 @@ pub struct VesselTask {
     /// ... and this vessel's slot there, made at its first state (a vessel
     /// that never has one leaves nothing behind).
     latest_slot: OnceLock<StateSlot>,
+    /// The daemon's latest fault, alarms and finding...
+    outputs: LatestOutputs,
+    /// ... and this vessel's slot there, made at its first such output.
+    outputs_slot: OnceLock<OutputSlot>,
     tap: OutputTap,
+    save_failures: SaveFailures,
     twin: VesselTwin,
     nmea: NmeaDecoder,
     assembler: FixAssembler,
@@ -256,6 +267,8 @@ pub struct VesselShared {
     pub session: Session,
     /// The latest states, shared with the queryable and the web page.
     pub latest: LatestStates,
+    /// The latest fault, alarms and finding, for the queryable.
+    pub outputs: LatestOutputs,
     /// Where outputs are copied for in-process listeners.
     pub tap: OutputTap,
     /// Bounds how many diagnoses run at once.
@@ -264,6 +277,8 @@ pub struct VesselShared {
     pub forecaster: Forecaster,
     /// Counts the events routed and not yet handled.
     pub load: FaultPathLoad,
+    /// Counts (and logs, rate-limited) the calibration saves that failed.
+    pub save_failures: SaveFailures,
 }
 
 impl VesselTask {
@@ -272,10 +287,12 @@ impl VesselTask {
         let VesselShared {
             session,
             latest,
+            outputs,
             tap,
             diagnose_slots,
             forecaster,
             load,
+            save_failures,
         } = shared.clone();
         let mut twin =
             VesselTwin::new(settings.twin).expect("the settings' twin configuration was validated");
@@ -286,7 +303,7 @@ impl VesselTask {
                     twin.restore(calibration);
                 }
                 Ok(None) => {}
-                Err(e) => tracing::warn!(vessel = id.as_str(), "calibration not restored: {e}"),
+                Err(e) => save_failures.not_restored(id.as_str(), &e),
             }
         }
         let assembler = FixAssembler::new(AssemblerConfig {
@@ -304,7 +321,10 @@ impl VesselTask {
             session,
             latest,
             latest_slot: OnceLock::new(),
+            outputs,
+            outputs_slot: OnceLock::new(),
             tap,
+            save_failures,
             twin,
             nmea: NmeaDecoder::new(ReadOptions::default()),
             assembler,
@@ -470,6 +490,7 @@ impl VesselTask {
     async fn put(&self, key: &VesselKey, bytes: Vec<u8>) -> zenoh::Result<()> {
         self.session
             .put(key.declared(&self.session), bytes)
+            .encoding(Encoding::APPLICATION_JSON)
             .congestion_control(CongestionControl::Block)
             .await
     }
@@ -481,14 +502,19 @@ impl VesselTask {
         if let Some(c) = self.twin.calibration() {
             match persist::save(dir, self.id.as_str(), &c) {
                 Ok(()) => self.unsaved = false,
-                Err(e) => tracing::error!(vessel = self.id.as_str(), "calibration not saved: {e}"),
+                Err(e) => self.save_failures.failed(self.id.as_str(), &e),
             }
         }
     }
 
     async fn handle(&mut self, ev: VesselEvent, p: &VesselKeys) {
         match ev {
-            VesselEvent::Refused { reason, detail } => {
+            VesselEvent::Refused {
+                topic,
+                reason,
+                detail,
+            } => {
+                self.counters.receive(topic);
                 self.counters.reject(self.id.as_str(), reason, &detail)
             }
             VesselEvent::Payload { topic, bytes } => self.handle_payload(topic, &bytes, p).await,
@@ -496,106 +522,155 @@ impl VesselTask {
     }
 
     async fn handle_payload(&mut self, topic: Topic, bytes: &[u8], p: &VesselKeys) {
+        self.counters.receive(topic);
+        let who = self.id.as_str();
         match topic {
-            Topic::Gnss => match decode_gnss_limited(bytes, self.settings.max_payload_bytes) {
-                Ok(d) => {
-                    self.replay = d.replay;
-                    self.counters.accept("gnss");
-                    self.on_fix(&d.value, p).await;
+            Topic::Gnss => {
+                let d = match decode_gnss_limited(bytes, self.settings.max_payload_bytes) {
+                    Ok(d) => d,
+                    Err(e) => return self.counters.reject(who, e.reason(), &e),
+                };
+                if let Err((reason, detail)) =
+                    check_live_time(&self.settings.live_time, d.replay, d.value.time_s)
+                {
+                    return self.counters.reject(who, reason, &detail);
                 }
-                Err(e) => self.counters.reject(self.id.as_str(), e.reason(), &e),
-            },
+                self.replay = d.replay;
+                match self.on_fix(&d.value, p).await {
+                    Ok(()) => self.counters.accept(Topic::Gnss),
+                    Err(r) => self.counters.reject(self.id.as_str(), r.reason(), &r),
+                }
+            }
             Topic::Actuators => {
-                match decode_actuators_limited(bytes, self.settings.max_payload_bytes) {
-                    Ok(d) => {
-                        self.replay = d.replay;
-                        self.counters.accept("actuators");
-                        self.on_command(d.value);
-                    }
-                    Err(e) => self.counters.reject(self.id.as_str(), e.reason(), &e),
+                let d = match decode_actuators_limited(bytes, self.settings.max_payload_bytes) {
+                    Ok(d) => d,
+                    Err(e) => return self.counters.reject(who, e.reason(), &e),
+                };
+                let speeds = speeds_of(d.value, &self.settings.twin.kinetic.params);
+                if let Err((reason, detail)) =
+                    check_live_time(&self.settings.live_time, d.replay, speeds.time_s)
+                {
+                    return self.counters.reject(who, reason, &detail);
+                }
+                self.replay = d.replay;
+                match self.on_propellers(&speeds) {
+                    Ok(()) => self.counters.accept(Topic::Actuators),
+                    Err(r) => self.counters.reject(self.id.as_str(), r.reason(), &r),
                 }
             }
-            Topic::Nmea => {
-                self.counters.accept("nmea");
-                let mut items = Vec::new();
-                self.nmea.decode_payload(bytes, &mut items);
-                let mut assembled = Vec::new();
-                for item in items {
-                    match item {
-                        Ok(record) => {
-                            if let (Measurement::SpeedThroughWater { mps }, Some(m)) =
-                                (&record.measurement, self.monitor.as_mut())
-                            {
-                                m.push(DiagEvent::SpeedThroughWater {
-                                    time_s: record.time_s,
-                                    mps: *mps,
-                                });
-                            }
-                            self.assembler.push(record, &mut assembled)
-                        }
-                        Err(rejection) => {
-                            let reason = rejection.reason.kind().name();
-                            self.counters.reject(self.id.as_str(), reason, &rejection);
-                        }
-                    }
-                }
-                for a in assembled {
-                    match a {
-                        Assembled::Fix(fix) => {
-                            self.counters.accept("nmea_fix");
-                            self.on_fix(&fix, p).await;
-                        }
-                        Assembled::Propellers(s) => self.on_command(ActuatorCommand::Speeds(s)),
-                        Assembled::Thrust(t) => self.on_command(ActuatorCommand::Thrust(t)),
-                    }
-                }
-            }
+            Topic::Nmea => self.handle_nmea(bytes, p).await,
             other => self
                 .counters
-                .reject(self.id.as_str(), "not_an_input_topic", &other.suffix()),
+                .reject(who, "not_an_input_topic", &other.suffix()),
         }
     }
 
-    fn on_command(&mut self, command: ActuatorCommand) {
-        let speeds = match command {
-            ActuatorCommand::Speeds(s) => s,
-            ActuatorCommand::Thrust(ThrustCommand {
-                time_s,
-                port_n,
-                starboard_n,
-            }) => {
-                let params = &self.settings.twin.kinetic.params;
-                PropellerSpeeds {
-                    time_s,
-                    port_radps: params.shaft_speed_for_thrust_radps(port_n),
-                    starboard_radps: params.shaft_speed_for_thrust_radps(starboard_n),
+    /// An NMEA payload: accepted when at least one sentence gives a record
+    /// (the others counted as refused sentences), else refused with the
+    /// first sentence's reason; the fixes and shaft speeds assembled from
+    /// the records then go to the twin, their refusals counted apart
+    /// ([`twin_wire::outputs::NmeaStats`]). NMEA carries no replay flag: its
+    /// times are live, held to the daemon's clock.
+    async fn handle_nmea(&mut self, bytes: &[u8], p: &VesselKeys) {
+        let mut items = Vec::new();
+        self.nmea.decode_payload(bytes, &mut items);
+        if !items.iter().any(|i| i.is_ok()) {
+            let who = self.id.as_str();
+            return match items.into_iter().find_map(Result::err) {
+                Some(r) => self.counters.reject(who, r.reason.kind().name(), &r),
+                None => self.counters.reject(who, EMPTY_NMEA, &"no NMEA sentence"),
+            };
+        }
+        self.counters.accept(Topic::Nmea);
+        let mut assembled = Vec::new();
+        for item in items {
+            match item {
+                Ok(record) => {
+                    if let (Measurement::SpeedThroughWater { mps }, Some(m)) =
+                        (&record.measurement, self.monitor.as_mut())
+                    {
+                        m.push(DiagEvent::SpeedThroughWater {
+                            time_s: record.time_s,
+                            mps: *mps,
+                        });
+                    }
+                    self.assembler.push(record, &mut assembled)
+                }
+                Err(rejection) => {
+                    let reason = rejection.reason.kind().name();
+                    self.counters.refuse(
+                        Refused::NmeaSentence,
+                        self.id.as_str(),
+                        reason,
+                        &rejection,
+                    );
                 }
             }
-        };
-        match self.twin.on_propellers(&speeds) {
-            Ok(_) => {
-                if let Some(m) = self.monitor.as_mut() {
-                    m.push(DiagEvent::Propellers(speeds));
+        }
+        for a in assembled {
+            match a {
+                Assembled::Fix(fix) => {
+                    if let Err((reason, detail)) =
+                        check_live_time(&self.settings.live_time, false, fix.time_s)
+                    {
+                        self.counters
+                            .refuse(Refused::NmeaFix, self.id.as_str(), reason, &detail);
+                        continue;
+                    }
+                    self.replay = false;
+                    match self.on_fix(&fix, p).await {
+                        Ok(()) => self.counters.nmea.fixes += 1,
+                        Err(r) => {
+                            self.counters
+                                .refuse(Refused::NmeaFix, self.id.as_str(), r.reason(), &r)
+                        }
+                    }
                 }
+                Assembled::Propellers(s) => self.on_nmea_propellers(s),
+                Assembled::Thrust(t) => self.on_nmea_propellers(speeds_of(
+                    ActuatorCommand::Thrust(t),
+                    &self.settings.twin.kinetic.params,
+                )),
             }
-            Err(r) => self.counters.reject(self.id.as_str(), r.reason(), &r),
         }
     }
 
-    async fn on_fix(&mut self, fix: &GnssFix, p: &VesselKeys) {
-        match self.twin.on_gnss(fix) {
-            Ok(out) => {
-                // The armed timer was set without a stale or a save deadline.
-                self.rearm_timer |=
-                    self.stale_published || !self.unsaved || self.last_fix_wall.is_none();
-                self.last_fix_wall = Some(Instant::now());
-                self.stale_published = false;
-                self.unsaved = true;
-                self.monitor_fix(fix, &out);
-                self.publish_step(&out, p).await;
+    /// Shaft speeds assembled from NMEA, held to the daemon's clock.
+    fn on_nmea_propellers(&mut self, speeds: PropellerSpeeds) {
+        let result =
+            check_live_time(&self.settings.live_time, false, speeds.time_s).and_then(|()| {
+                self.on_propellers(&speeds)
+                    .map_err(|r| (r.reason(), r.to_string()))
+            });
+        match result {
+            Ok(()) => self.counters.nmea.propellers += 1,
+            Err((reason, detail)) => {
+                self.counters
+                    .refuse(Refused::NmeaPropellers, self.id.as_str(), reason, &detail)
             }
-            Err(r) => self.counters.reject(self.id.as_str(), r.reason(), &r),
         }
+    }
+
+    /// Shaft speeds to the twin (and, once taken, to the live monitor).
+    fn on_propellers(&mut self, speeds: &PropellerSpeeds) -> Result<(), Rejection> {
+        self.twin.on_propellers(speeds)?;
+        if let Some(m) = self.monitor.as_mut() {
+            m.push(DiagEvent::Propellers(*speeds));
+        }
+        Ok(())
+    }
+
+    /// A fix to the twin; once taken, its outputs are published.
+    async fn on_fix(&mut self, fix: &GnssFix, p: &VesselKeys) -> Result<(), Rejection> {
+        let out = self.twin.on_gnss(fix)?;
+        // The armed timer was set without a stale or a save deadline.
+        self.rearm_timer |= self.stale_published || !self.unsaved || self.last_fix_wall.is_none();
+        self.last_fix_wall = Some(Instant::now());
+        self.stale_published = false;
+        self.unsaved = true;
+        self.monitor_fix(fix, &out);
+        self.publish_step(&out, p).await;
+        Ok(())
     }
 
     /// Feeds the live monitor an accepted fix and starts a diagnosis when
@@ -662,16 +737,22 @@ impl VesselTask {
             if causes.is_empty() { "none (the nominal model explains the data)".to_string() } else { causes.join(", ") }
         );
         self.published_causes = Some(causes);
-        self.put_json(Topic::TwinFinding, &p.finding, &findings)
-            .await;
+        self.put_kept(
+            Topic::TwinFinding,
+            Some(Kept::Finding),
+            &p.finding,
+            &findings,
+        )
+        .await;
     }
 
     async fn publish_step(&mut self, out: &StepOutput, p: &VesselKeys) {
         let vessel = self.id.as_str();
         let state = StateMessage::new(vessel, &out.state, false, self.replay);
         self.put_state(&state, p).await;
-        self.put_json(
+        self.put_kept(
             Topic::TwinFault,
+            Some(Kept::Fault),
             &p.fault,
             &FaultMessage::new(vessel, &out.faults, self.replay),
         )
@@ -697,7 +778,8 @@ impl VesselTask {
             alarm.what,
             alarm.confidence
         );
-        self.put_json(Topic::TwinAlarm, &p.alarm, &alarm).await;
+        self.put_kept(Topic::TwinAlarm, Some(Kept::Alarm), &p.alarm, &alarm)
+            .await;
     }
 
     /// Asks the forecast threads for a forecast from the twin as it is now,
@@ -758,8 +840,25 @@ impl VesselTask {
     }
 
     async fn put_json<T: serde::Serialize>(&self, topic: Topic, key: &VesselKey, value: &T) {
+        self.put_kept(topic, None, key, value).await
+    }
+
+    /// [`Self::put_json`], the payload also kept as the vessel's latest
+    /// `kept` output for the queryable.
+    async fn put_kept<T: serde::Serialize>(
+        &self,
+        topic: Topic,
+        kept: Option<Kept>,
+        key: &VesselKey,
+        value: &T,
+    ) {
         match encode_json(value, OUTPUT_CAPACITY_BYTES) {
             Ok(bytes) => {
+                if let Some(kind) = kept {
+                    self.outputs_slot
+                        .get_or_init(|| self.outputs.slot(self.id.as_str()))
+                        .set(kind, &bytes);
+                }
                 self.tap_out(topic, &bytes);
                 if let Err(e) = self.put(key, bytes).await {
                     tracing::warn!(key = %key, "not published: {e}");
@@ -776,8 +875,9 @@ impl VesselTask {
         let msg = StateMessage::new(self.id.as_str(), &state, stale, self.replay);
         self.put_state(&msg, p).await;
         let faults = self.twin.fault_report(state.time_s);
-        self.put_json(
+        self.put_kept(
             Topic::TwinFault,
+            Some(Kept::Fault),
             &p.fault,
             &FaultMessage::new(self.id.as_str(), &faults, self.replay),
         )
@@ -804,14 +904,74 @@ impl VesselTask {
     pub fn stats_message(&self) -> StatsMessage {
         StatsMessage {
             vessel: self.id.as_str().to_string(),
+            received: self.counters.received(),
             accepted: self.counters.accepted(),
             rejected: self.counters.rejected.clone(),
+            nmea: self.counters.nmea.clone(),
         }
     }
 
     async fn publish_stats(&self, p: &VesselKeys) {
         self.put_json(Topic::TwinStats, &p.stats, &self.stats_message())
             .await;
+    }
+}
+
+/// The reason of an NMEA payload that holds no sentence at all.
+pub(crate) const EMPTY_NMEA: &str = "empty_nmea";
+
+/// A live message's time stamp (`replay` false) held to the daemon's
+/// clock: more than `max_ahead_s` ahead of it or `max_behind_s` behind it
+/// is refused with the reason and a detail. A replay's times are its log's
+/// and are not compared with the clock (the twin holds them to its own
+/// timeline).
+pub(crate) fn check_live_time(
+    bounds: &LiveTimeSettings,
+    replay: bool,
+    time_s: f64,
+) -> Result<(), (&'static str, String)> {
+    if replay {
+        return Ok(());
+    }
+    let now_s = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64());
+    let ahead_s = time_s - now_s;
+    if ahead_s > bounds.max_ahead_s {
+        Err((
+            "time_ahead_of_clock",
+            format!(
+                "stamped {ahead_s:.0} s ahead of the daemon's clock (at most {} s)",
+                bounds.max_ahead_s
+            ),
+        ))
+    } else if -ahead_s > bounds.max_behind_s {
+        Err((
+            "time_behind_clock",
+            format!(
+                "stamped {:.0} s behind the daemon's clock (at most {} s)",
+                -ahead_s, bounds.max_behind_s
+            ),
+        ))
+    } else {
+        Ok(())
+    }
+}
+
+/// An actuator command as shaft speeds (a thrust through the Otter's
+/// propeller curve).
+pub(crate) fn speeds_of(command: ActuatorCommand, params: &OtterParams) -> PropellerSpeeds {
+    match command {
+        ActuatorCommand::Speeds(s) => s,
+        ActuatorCommand::Thrust(ThrustCommand {
+            time_s,
+            port_n,
+            starboard_n,
+        }) => PropellerSpeeds {
+            time_s,
+            port_radps: params.shaft_speed_for_thrust_radps(port_n),
+            starboard_radps: params.shaft_speed_for_thrust_radps(starboard_n),
+        },
     }
 }
 

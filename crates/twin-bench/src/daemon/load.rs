@@ -347,7 +347,7 @@ pub(crate) fn vessel_index(id: &str) -> Option<usize> {
 }
 
 /// A free TCP port on loopback (bound, read, released).
-fn free_port() -> anyhow::Result<u16> {
+pub(crate) fn free_port() -> anyhow::Result<u16> {
     Ok(std::net::TcpListener::bind("127.0.0.1:0")?
         .local_addr()?
         .port())
@@ -355,7 +355,7 @@ fn free_port() -> anyhow::Result<u16> {
 
 /// A peer on loopback listening on / connecting to the given ports, with
 /// multicast scouting and gossip off: only the links asked for exist.
-fn zenoh_config(listen: &[u16], connect: &[u16]) -> anyhow::Result<zenoh::Config> {
+pub(crate) fn zenoh_config(listen: &[u16], connect: &[u16]) -> anyhow::Result<zenoh::Config> {
     let ends = |ports: &[u16]| {
         let v: Vec<String> = ports
             .iter()
@@ -377,7 +377,7 @@ fn zenoh_config(listen: &[u16], connect: &[u16]) -> anyhow::Result<zenoh::Config
     Ok(c)
 }
 
-async fn wait_matching(p: &Publisher<'_>, within: Duration) -> anyhow::Result<()> {
+pub(crate) async fn wait_matching(p: &Publisher<'_>, within: Duration) -> anyhow::Result<()> {
     let deadline = Instant::now() + within;
     loop {
         let matching = p
@@ -397,7 +397,7 @@ async fn wait_matching(p: &Publisher<'_>, within: Duration) -> anyhow::Result<()
     }
 }
 
-fn zerr(what: &str) -> impl FnOnce(zenoh::Error) -> anyhow::Error + '_ {
+pub(crate) fn zerr(what: &str) -> impl FnOnce(zenoh::Error) -> anyhow::Error + '_ {
     move |e| anyhow::anyhow!("{what}: {e}")
 }
 
