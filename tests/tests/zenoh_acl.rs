@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 use tokio_util::sync::CancellationToken;
 use twin_tests::net::free_port;
 use twin_tests::wire::wait_matching;
-use twin_wire::messages::GnssMessage;
+use twin_wire::messages::{GnssMessage, TimeSource};
 use twind::settings::Settings;
 use zenoh::Session;
 use zenoh::handlers::{FifoChannel, FifoChannelHandler};
@@ -118,6 +118,7 @@ fn fixes(n: usize) -> Vec<Vec<u8>> {
                 heading_rad: Some(0.0),
                 hdop: Some(0.8),
                 replay: false,
+                time_source: TimeSource::Source,
             };
             serde_json::to_vec(&m).unwrap()
         })

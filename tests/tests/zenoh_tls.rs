@@ -24,7 +24,7 @@ use serde_json::Value;
 use tokio_util::sync::CancellationToken;
 use twin_tests::net::free_port;
 use twin_tests::wire::wait_matching;
-use twin_wire::messages::GnssMessage;
+use twin_wire::messages::{GnssMessage, TimeSource};
 use twind::settings::Settings;
 use zenoh::Session;
 
@@ -134,6 +134,7 @@ fn fix(i: usize) -> Vec<u8> {
         heading_rad: Some(0.0),
         hdop: Some(0.8),
         replay: false,
+        time_source: TimeSource::Source,
     })
     .unwrap()
 }
