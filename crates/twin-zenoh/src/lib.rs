@@ -6,7 +6,11 @@
 //! - [`cli`]: Zenoh's usual command-line flags (`--config`, `--mode`,
 //!   `--connect`, `--listen`, `--no-multicast-scouting`) as [`ZenohArgs`],
 //!   and their translation into a [`zenoh::Config`].
+//! - [`limit`]: when to log a refusal (each reason first, then once a
+//!   minute with the count since), shared by the binaries that take
+//!   network input.
 
 pub mod cli;
+pub mod limit;
 
 pub use cli::{Mode, ZenohArgs, ZenohConfigError};

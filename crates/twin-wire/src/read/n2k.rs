@@ -34,6 +34,7 @@ use twin_core::geodesy::wrap_two_pi;
 use twin_core::sample::{RADPS_PER_RPM, Side};
 
 use super::fast_packet::{FastFrame, FastPackets, is_fast};
+use super::n2k_raw::CanId;
 use super::{
     Decoder, Emit, Item, Monotonic, ReadOptions, ReadStats, RejectReason, reject_whole_line,
     trim_line,
@@ -251,6 +252,77 @@ fn lat_lon(lat: Option<f64>, lon: Option<f64>) -> Result<Option<(f64, f64)>, Rej
     Ok(Some((lat, lon)))
 }
 
+/// The header of a canboat text line: its time and the message's id.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MessageHeader {
+    /// The line's time, seconds since the epoch.
+    pub time_s: f64,
+    /// Priority, PGN, source and destination.
+    pub id: CanId,
+}
+
+/// Parses one canboat text line (not a comment) into its header, putting
+/// its data bytes in `data`: shared by the decoder and by whatever carries
+/// the text into another layout.
+pub fn parse_message(line: &[u8], data: &mut Vec<u8>) -> Result<MessageHeader, RejectReason> {
+    let text = std::str::from_utf8(trim_line(line)).map_err(|_| RejectReason::NotText)?;
+    let mut parts = text.split(',');
+    let time = parts.next().unwrap_or("");
+    if !time.as_bytes().first().is_some_and(u8::is_ascii_digit) {
+        return Err(RejectReason::UnknownFormat);
+    }
+    let time_s = parse_rfc3339(time).map_err(RejectReason::BadTime)?;
+    let mut header = [0u32; 5];
+    const NAMES: [&str; 5] = ["priority", "PGN", "source", "destination", "length"];
+    for (value, what) in header.iter_mut().zip(NAMES) {
+        let field = parts.next().ok_or(RejectReason::Malformed { what })?;
+        if field.is_empty() || field.len() > 7 || !field.bytes().all(|b| b.is_ascii_digit()) {
+            return Err(RejectReason::Malformed { what });
+        }
+        *value = field
+            .parse()
+            .map_err(|_| RejectReason::Malformed { what })?;
+    }
+    let [priority, pgn, source, destination, length] = header;
+    if priority > 7 {
+        return Err(RejectReason::Malformed { what: "priority" });
+    }
+    let source = u8::try_from(source).map_err(|_| RejectReason::Malformed { what: "source" })?;
+    let destination = u8::try_from(destination).map_err(|_| RejectReason::Malformed {
+        what: "destination",
+    })?;
+    let length = length as usize;
+    if length > MAX_DATA_BYTES {
+        return Err(RejectReason::Malformed { what: "length" });
+    }
+    data.clear();
+    for byte in parts {
+        if byte.len() != 2 || data.len() == length {
+            return Err(RejectReason::Malformed { what: "data bytes" });
+        }
+        let b = u8::from_str_radix(byte, 16)
+            .map_err(|_| RejectReason::Malformed { what: "data bytes" })?;
+        if !byte.bytes().all(|c| c.is_ascii_hexdigit()) {
+            return Err(RejectReason::Malformed { what: "data bytes" });
+        }
+        data.push(b);
+    }
+    if data.len() != length {
+        return Err(RejectReason::Malformed {
+            what: "data length",
+        });
+    }
+    Ok(MessageHeader {
+        time_s,
+        id: CanId {
+            priority: priority as u8,
+            pgn,
+            source,
+            destination,
+        },
+    })
+}
+
 impl State {
     fn line(
         &mut self,
@@ -270,56 +342,9 @@ impl State {
             emit.stats.blank += 1;
             return Ok(());
         }
-        let text = std::str::from_utf8(line).map_err(|_| RejectReason::NotText)?;
-        let mut parts = text.split(',');
-        let time = parts.next().unwrap_or("");
-        if !time.as_bytes().first().is_some_and(u8::is_ascii_digit) {
-            return Err(RejectReason::UnknownFormat);
-        }
-        let time_s = parse_rfc3339(time).map_err(RejectReason::BadTime)?;
-        let mut header = [0u32; 5];
-        const NAMES: [&str; 5] = ["priority", "PGN", "source", "destination", "length"];
-        for (value, what) in header.iter_mut().zip(NAMES) {
-            let field = parts.next().ok_or(RejectReason::Malformed { what })?;
-            if field.is_empty() || field.len() > 7 || !field.bytes().all(|b| b.is_ascii_digit()) {
-                return Err(RejectReason::Malformed { what });
-            }
-            *value = field
-                .parse()
-                .map_err(|_| RejectReason::Malformed { what })?;
-        }
-        let [priority, pgn, source, destination, length] = header;
-        if priority > 7 {
-            return Err(RejectReason::Malformed { what: "priority" });
-        }
-        let source =
-            u8::try_from(source).map_err(|_| RejectReason::Malformed { what: "source" })?;
-        if destination > 255 {
-            return Err(RejectReason::Malformed {
-                what: "destination",
-            });
-        }
-        let length = length as usize;
-        if length > MAX_DATA_BYTES {
-            return Err(RejectReason::Malformed { what: "length" });
-        }
-        self.data.clear();
-        for byte in parts {
-            if byte.len() != 2 || self.data.len() == length {
-                return Err(RejectReason::Malformed { what: "data bytes" });
-            }
-            let b = u8::from_str_radix(byte, 16)
-                .map_err(|_| RejectReason::Malformed { what: "data bytes" })?;
-            if !byte.bytes().all(|c| c.is_ascii_hexdigit()) {
-                return Err(RejectReason::Malformed { what: "data bytes" });
-            }
-            self.data.push(b);
-        }
-        if self.data.len() != length {
-            return Err(RejectReason::Malformed {
-                what: "data length",
-            });
-        }
+        let header = parse_message(line, &mut self.data)?;
+        let time_s = header.time_s;
+        let (pgn, source) = (header.id.pgn, header.id.source);
         self.monotonic
             .check(time_s, options.backwards_tolerance_s)?;
         let data = std::mem::take(&mut self.data);

@@ -158,6 +158,52 @@ impl N2kRawDecoder {
         self.format
     }
 
+    /// Decodes one CAN frame read from a live interface (SocketCAN): the
+    /// same as a candump line of it, without the text. `raw_id` is the
+    /// 29-bit id; `extended` false (an 11-bit frame) is not NMEA 2000.
+    pub fn decode_can_frame(
+        &mut self,
+        raw_id: u32,
+        extended: bool,
+        data: &[u8],
+        line_no: u64,
+        out: &mut Vec<Item>,
+    ) {
+        self.stats.lines += 1;
+        self.receiver_stamped = false;
+        let mut stats = std::mem::take(&mut self.stats);
+        let mut emit = Emit {
+            out,
+            stats: &mut stats,
+            line: line_no,
+        };
+        let result = match CanId::from_raw(raw_id) {
+            Some(id) if extended && data.len() <= 8 => {
+                self.data.clear();
+                self.data.extend_from_slice(data);
+                self.message(
+                    Parsed {
+                        time: LineTime::Absent,
+                        id: Some(id),
+                        whole: false,
+                    },
+                    &mut emit,
+                )
+            }
+            Some(_) if extended => Err(RejectReason::Malformed {
+                what: "data length",
+            }),
+            _ => {
+                emit.stats.ignored += 1;
+                Ok(())
+            }
+        };
+        if let Err(reason) = result {
+            emit.reject(reason);
+        }
+        self.stats = stats;
+    }
+
     fn line(&mut self, line: &[u8], emit: &mut Emit<'_>) -> Result<(), RejectReason> {
         let line = line.trim_ascii();
         if line.is_empty() || line.first() == Some(&b'#') {
@@ -171,6 +217,11 @@ impl N2kRawDecoder {
             RawFormat::YdRaw => parse_ydraw(text, &mut self.data)?,
             RawFormat::ActisenseAscii => parse_actisense(text, &mut self.data)?,
         };
+        self.message(parsed, emit)
+    }
+
+    /// Decodes the frame or message parsed into `self.data`.
+    fn message(&mut self, parsed: Parsed, emit: &mut Emit<'_>) -> Result<(), RejectReason> {
         let Some(id) = parsed.id else {
             emit.stats.ignored += 1;
             return Ok(());
@@ -470,9 +521,6 @@ fn parse_actisense(text: &str, data: &mut Vec<u8>) -> Result<Parsed, RejectReaso
         return Err(RejectReason::Malformed { what: "PGN" });
     }
     let pgn = u32::from_str_radix(pgn, 16).map_err(|_| RejectReason::Malformed { what: "PGN" })?;
-    if pgn > 0x3_FFFF {
-        return Err(RejectReason::Malformed { what: "PGN" });
-    }
     hex_bytes(tokens.next().unwrap_or(""), data, MAX_DATA_BYTES)?;
     if tokens.next().is_some() {
         return Err(RejectReason::Malformed {

@@ -4,8 +4,8 @@
 //! Actisense N2K ASCII line. The tests use them to carry the real canboat
 //! logs into the other layouts; the bridge's benchmark to make traffic.
 
-use crate::read::fast_packet::MAX_FAST_BYTES;
-use crate::read::n2k_raw::CanId;
+use crate::read::fast_packet::{MAX_FAST_BYTES, is_fast};
+use crate::read::n2k_raw::{CanId, RawFormat};
 use crate::time::split_date_time_ms;
 
 use super::WriteError;
@@ -94,6 +94,45 @@ pub fn actisense_line(time_s: f64, id: CanId, message: &[u8]) -> Result<String, 
         id.pgn,
         hex(message, "")
     ))
+}
+
+/// The lines that carry one message in `layout`: candump and Yacht Devices
+/// RAW a line per CAN frame (fast-packet frames with `sequence` when the
+/// message is longer than 8 bytes or its PGN is one the readers join),
+/// Actisense N2K ASCII the whole message on one line. A PGN over 18 bits
+/// (a gateway's own) cannot be a CAN id: refused for the frame layouts.
+pub fn message_lines(
+    layout: RawFormat,
+    time_s: f64,
+    id: CanId,
+    message: &[u8],
+    sequence: u8,
+) -> Result<Vec<String>, WriteError> {
+    if layout == RawFormat::ActisenseAscii {
+        return Ok(vec![actisense_line(time_s, id, message)?]);
+    }
+    // A CAN id holds 18 bits of PGN; gateways' own PGNs are larger.
+    if id.pgn > 0x3_FFFF {
+        return Err(WriteError::OutOfRange { field: "PGN" });
+    }
+    let frames = if message.len() > 8 || is_fast(id.pgn) {
+        let frames = fast_packet_frames(message, sequence);
+        if frames.is_empty() {
+            return Err(WriteError::OutOfRange {
+                field: "message length",
+            });
+        }
+        frames
+    } else {
+        vec![message.to_vec()]
+    };
+    frames
+        .iter()
+        .map(|frame| match layout {
+            RawFormat::Candump => candump_line(time_s, "can0", id, frame),
+            _ => ydraw_line(time_s, id, frame),
+        })
+        .collect()
 }
 
 #[cfg(test)]
