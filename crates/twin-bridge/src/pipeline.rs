@@ -12,7 +12,11 @@
 //! (NMEA 2000 frames, MAVLink before the vehicle's clock is known, a gpsd
 //! report without `time`). A published input whose time is such a receive
 //! time says so: `"time_source":"receiver"`. An NMEA 0183 time of day with
-//! no date yet takes the date of the receiving computer's clock.
+//! no date yet takes the date of the receiving computer's clock. When a
+//! source moves from receive times to a clock of its own (MAVLink once the
+//! vehicle's clock is known), the two need not agree: the decoder starts a
+//! new time line, and the pipeline a new assembler (what was pending is
+//! published first).
 //!
 //! # Never malformed, nothing decodable lost
 //! What is published is what the contract's own encoders make, and they
@@ -99,6 +103,8 @@ struct Core {
     flushed: bool,
     /// The latest line decoded without a refusal.
     last_line_clean: bool,
+    /// The time of the latest record.
+    latest_record_s: Option<f64>,
 }
 
 /// One source's decoder, assembler and counters.
@@ -160,6 +166,7 @@ impl Pipeline {
                 last_data: None,
                 flushed: true,
                 last_line_clean: true,
+                latest_record_s: None,
             },
         }
     }
@@ -365,6 +372,19 @@ impl Core {
                     if sentences {
                         continue;
                     }
+                    let tolerance = self.config.read.backwards_tolerance_s;
+                    if self
+                        .latest_record_s
+                        .is_some_and(|t| record.time_s < t - tolerance)
+                    {
+                        // The decoder let time go back: its source moved to
+                        // another clock (the vehicle's after receive
+                        // times). A new time line needs a new assembler.
+                        self.assembler.finish(&mut self.ready);
+                        self.assembler = FixAssembler::new(self.config.assembler);
+                        self.stamps.clear();
+                    }
+                    self.latest_record_s = Some(record.time_s);
                     if stamped {
                         if self.stamps.len() == MAX_STAMPS {
                             self.stamps.pop_front();

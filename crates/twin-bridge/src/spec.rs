@@ -16,6 +16,7 @@
 //! | `mavlink:tcp:127.0.0.1:5760` | MAVLink from a TCP server (SITL, a telemetry bridge) |
 //! | `mavlink:serial:/dev/ttyACM0,baud=115200` | MAVLink on the autopilot's serial port (default 57600) |
 //! | `gpsd`, `gpsd:tcp:pi.local:2947` | gpsd's JSON reports (default 127.0.0.1:2947) |
+//! | `gpsd:stdin` | `gpspipe -w` piped in |
 //!
 //! Options: `baud=N` (serial), `publish=fixes|sentences` (NMEA 0183:
 //! assembled fixes on `gnss`, the default, or the checked sentences as they
@@ -269,7 +270,7 @@ impl FromStr for SourceSpec {
             Format::YdRaw => "udp, tcp, serial or stdin",
             Format::Actisense => "tcp, udp or stdin",
             Format::Mavlink => "udp, tcp, serial or stdin",
-            Format::Gpsd => "tcp (default 127.0.0.1:2947)",
+            Format::Gpsd => "tcp (default 127.0.0.1:2947) or stdin",
         };
         let wrong = || SpecError::Transport {
             format: format.name(),
@@ -281,6 +282,7 @@ impl FromStr for SourceSpec {
                 address: "127.0.0.1:2947".to_owned(),
             },
             (Format::Gpsd, "tcp") => tcp(address)?,
+            (Format::Gpsd, "stdin") if address.is_empty() => Transport::Stdin,
             (Format::Gpsd, _) => return Err(wrong()),
             (Format::Candump, "can") => {
                 if address.is_empty() || address.len() > 15 {

@@ -21,11 +21,14 @@
 //! # Sources and time
 //! Each device gpsd names (`device`, e.g. `/dev/ttyUSB0`) is a source
 //! [`Source::Gpsd`], numbered in the order first seen (at most 256). A
-//! report's `time` (the receiver's GNSS time, RFC 3339) is its time. A
-//! report without one takes the time it was received when the decoder is
-//! live (`Clock::Receiver`); in a log an `ATT` without time takes the latest
-//! `TPV` time of the stream, anything else without time is refused
-//! (`NoTime`).
+//! report's `time` (the receiver's GNSS time, RFC 3339) is its time. An
+//! `ATT` without time (gpsd sends its heading before the epoch's `TPV`)
+//! takes the latest time of the stream, and is refused (`NoTime`) before
+//! there is one. A `TPV` without time takes the time it was received when
+//! the decoder is live (`Clock::Receiver`) and the stream has not yet given
+//! a time of its own; otherwise it is refused (`NoTime`). The first report
+//! on the receiver's clock after receive-stamped ones starts a new time
+//! line (it is not refused as time going back).
 
 use serde::Deserialize;
 
@@ -75,6 +78,8 @@ pub struct GpsdDecoder {
     /// The latest SKY hdop of each device (by number).
     hdop: Vec<Option<f64>>,
     clock: DayClock,
+    /// A report with its own time has been seen.
+    own_time_seen: bool,
     receive_time_s: Option<f64>,
     receiver_stamped: bool,
 }
@@ -115,6 +120,7 @@ impl GpsdDecoder {
             devices: Vec::new(),
             hdop: Vec::new(),
             clock: DayClock::default(),
+            own_time_seen: false,
             receive_time_s: None,
             receiver_stamped: false,
         }
@@ -139,14 +145,23 @@ impl GpsdDecoder {
         let tolerance = self.options.backwards_tolerance_s;
         if let Some(text) = &report.time {
             let t = parse_rfc3339(text).map_err(RejectReason::BadTime)?;
+            if !std::mem::replace(&mut self.own_time_seen, true) {
+                // The first report on the receiver's own clock after
+                // reports on receive times: a new time line (the two
+                // clocks need not agree), not a jump back.
+                self.clock = DayClock::default();
+            }
             return self.clock.exact(t, tolerance).map(|s| s.time_s);
         }
+        if untimed_ok {
+            // An ATT: gpsd sends it before the epoch's TPV, without time.
+            return self.clock.untimed().map(|s| s.time_s);
+        }
         match (self.options.clock, self.receive_time_s) {
-            (Clock::Receiver, Some(t)) => {
+            (Clock::Receiver, Some(t)) if !self.own_time_seen => {
                 self.receiver_stamped = true;
                 self.clock.exact(t, tolerance).map(|s| s.time_s)
             }
-            _ if untimed_ok => self.clock.untimed().map(|s| s.time_s),
             _ => Err(RejectReason::NoTime),
         }
     }
@@ -379,16 +394,29 @@ mod tests {
             clock: Clock::Receiver,
             ..ReadOptions::default()
         });
-        d.set_receive_time(1_785_731_240.0);
+        // The receiving computer's clock is hours after the GNSS time.
+        d.set_receive_time(1_785_831_240.0);
         let mut out = Vec::new();
-        d.decode_line(br#"{"class":"TPV","mode":2,"lat":1.0,"lon":2.0}"#, 1, &mut out);
-        assert_eq!(out[0].as_ref().unwrap().time_s, 1_785_731_240.0);
+        d.decode_line(br#"{"class":"ATT","heading":10.0}"#, 1, &mut out);
+        assert!(out[0].is_err(), "a heading before any time: {out:?}");
+        d.decode_line(br#"{"class":"TPV","mode":2,"lat":1.0,"lon":2.0}"#, 2, &mut out);
+        assert_eq!(out[1].as_ref().unwrap().time_s, 1_785_831_240.0);
         assert!(d.receiver_stamped());
         d.decode_line(
             br#"{"class":"TPV","mode":2,"time":"2026-08-03T04:27:21Z","lat":1.0,"lon":2.0}"#,
-            2,
+            3,
             &mut out,
         );
         assert!(!d.receiver_stamped());
+        assert!(out[2].is_ok(), "the GNSS time is a new time line: {out:?}");
+        // From then on an ATT without time takes the latest GNSS time.
+        d.decode_line(br#"{"class":"ATT","heading":11.0}"#, 4, &mut out);
+        assert!(!d.receiver_stamped());
+        assert_eq!(
+            out[3].as_ref().unwrap().time_s,
+            out[2].as_ref().unwrap().time_s
+        );
+        d.decode_line(br#"{"class":"TPV","mode":2,"lat":1.0,"lon":2.0}"#, 5, &mut out);
+        assert!(out[4].is_err());
     }
 }
