@@ -533,8 +533,8 @@ impl MavlinkDecoder {
     /// The time of a record (see the module doc).
     fn time(&mut self, when: When, arrival_s: Option<f64>) -> Result<f64, RejectReason> {
         let vehicle = match when {
-            When::UnixUs(us) if us >= UNIX_US_FLOOR => Some(us as f64 * 1e-6),
-            When::UnixUs(us) => self.boot_offset_s.map(|o| o + us as f64 * 1e-6),
+            When::UnixUs(us) if us >= UNIX_US_FLOOR => Some(us as f64 / 1e6),
+            When::UnixUs(us) => self.boot_offset_s.map(|o| o + us as f64 / 1e6),
             When::Boot(boot_s) => self.boot_offset_s.map(|o| o + boot_s),
             When::None => self.boot_offset_s.and(self.latest_vehicle_s),
         };
@@ -561,7 +561,7 @@ impl MavlinkDecoder {
     }
 
     fn boot_ms(&mut self, ms: u32) -> When {
-        let s = f64::from(ms) * 1e-3;
+        let s = f64::from(ms) / 1e3;
         self.latest_boot_s = Some(s);
         When::Boot(s)
     }
@@ -569,7 +569,7 @@ impl MavlinkDecoder {
     /// `SERVO_OUTPUT_RAW`'s 32-bit microseconds since boot, unwrapped
     /// against the latest boot time seen.
     fn boot_us32(&mut self, us: u32) -> When {
-        let raw = f64::from(us) * 1e-6;
+        let raw = f64::from(us) / 1e6;
         let s = match self.latest_boot_s {
             Some(latest) => raw + ((latest - raw) / U32_US_WRAP_S).round() * U32_US_WRAP_S,
             None => raw,
@@ -627,7 +627,7 @@ impl MavlinkDecoder {
                 self.boot_ms(m.time_boot_ms);
                 if m.time_unix_usec >= UNIX_US_FLOOR {
                     self.boot_offset_s =
-                        Some(m.time_unix_usec as f64 * 1e-6 - f64::from(m.time_boot_ms) * 1e-3);
+                        Some(m.time_unix_usec as f64 / 1e6 - f64::from(m.time_boot_ms) / 1e3);
                 }
                 emit.stats.time_only += 1;
                 return Ok(());
@@ -905,7 +905,7 @@ impl Decoder for MavlinkDecoder {
         let (arrival_s, frame) = if self.tlog {
             match line.split_first_chunk::<TLOG_STAMP_BYTES>() {
                 Some((stamp, frame)) => (
-                    Some(u64::from_be_bytes(*stamp) as f64 * 1e-6),
+                    Some(u64::from_be_bytes(*stamp) as f64 / 1e6),
                     frame,
                 ),
                 None => (None, &[][..]),
