@@ -9,6 +9,7 @@ use std::fs;
 use std::path::PathBuf;
 
 use twin_wire::measurement::Record;
+use twin_wire::read::fast_packet::is_fast;
 use twin_wire::read::n2k::parse_message;
 use twin_wire::read::{LogFormat, LogReader, RawFormat, ReadOptions};
 use twin_wire::time::{CivilDate, split_date_time_ms};
@@ -34,7 +35,8 @@ fn convert(canboat: &str, layout: RawFormat) -> String {
         let header = parse_message(line.as_bytes(), &mut data).expect("the fixtures parse");
         let sequence = sequences.entry((header.id.source, header.id.pgn)).or_insert(0);
         // The logger's own PGNs (above 18 bits) never travel on a CAN bus.
-        let Ok(lines) = message_lines(layout, header.time_s, header.id, &data, *sequence) else {
+        let fast = is_fast(header.id.pgn);
+        let Ok(lines) = message_lines(layout, header.time_s, header.id, &data, fast, *sequence) else {
             assert!(header.id.pgn > 0x3_FFFF, "{line}");
             continue;
         };

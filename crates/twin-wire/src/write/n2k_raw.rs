@@ -4,7 +4,9 @@
 //! Actisense N2K ASCII line. The tests use them to carry the real canboat
 //! logs into the other layouts; the bridge's benchmark to make traffic.
 
-use crate::read::fast_packet::{MAX_FAST_BYTES, is_fast};
+use crate::read::fast_packet::MAX_FAST_BYTES;
+#[cfg(doc)]
+use crate::read::fast_packet::is_fast;
 use crate::read::n2k_raw::{CanId, RawFormat};
 use crate::time::split_date_time_ms;
 
@@ -97,15 +99,18 @@ pub fn actisense_line(time_s: f64, id: CanId, message: &[u8]) -> Result<String, 
 }
 
 /// The lines that carry one message in `layout`: candump and Yacht Devices
-/// RAW a line per CAN frame (fast-packet frames with `sequence` when the
-/// message is longer than 8 bytes or its PGN is one the readers join),
-/// Actisense N2K ASCII the whole message on one line. A PGN over 18 bits
+/// RAW a line per CAN frame, Actisense N2K ASCII the whole message on one
+/// line. `fast_packet` says whether the PGN is sent as fast packets (with
+/// `sequence`); a message longer than 8 bytes always is. (Which PGNs are
+/// fast packets is the NMEA 2000 database's to say; the readers need to
+/// know it only for the PGNs they decode, [`is_fast`].) A PGN over 18 bits
 /// (a gateway's own) cannot be a CAN id: refused for the frame layouts.
 pub fn message_lines(
     layout: RawFormat,
     time_s: f64,
     id: CanId,
     message: &[u8],
+    fast_packet: bool,
     sequence: u8,
 ) -> Result<Vec<String>, WriteError> {
     if layout == RawFormat::ActisenseAscii {
@@ -115,7 +120,7 @@ pub fn message_lines(
     if id.pgn > 0x3_FFFF {
         return Err(WriteError::OutOfRange { field: "PGN" });
     }
-    let frames = if message.len() > 8 || is_fast(id.pgn) {
+    let frames = if message.len() > 8 || fast_packet {
         let frames = fast_packet_frames(message, sequence);
         if frames.is_empty() {
             return Err(WriteError::OutOfRange {
