@@ -58,6 +58,9 @@ pub fn now_s() -> f64 {
         .map_or(0.0, |d| d.as_secs_f64())
 }
 
+/// The longest line kept from a text source other than gpsd, bytes.
+pub const MAX_TEXT_LINE_BYTES: usize = 4096;
+
 /// How often the counts are reported.
 pub const STATS_EVERY: Duration = Duration::from_secs(1);
 
@@ -105,6 +108,12 @@ pub(crate) fn pipeline_config(config: &BridgeConfig, spec: &SourceSpec) -> Pipel
     }
     if spec.mavlink_system.is_some() {
         read.mavlink.system = spec.mavlink_system;
+    }
+    if spec.format != spec::Format::Gpsd {
+        // An NMEA sentence is at most 82 characters, a gateway's line of
+        // a whole NMEA 2000 message under 4 KiB; gpsd's sky reports are
+        // long and keep the readers' default.
+        read.max_line_bytes = read.max_line_bytes.min(MAX_TEXT_LINE_BYTES);
     }
     PipelineConfig {
         read,
