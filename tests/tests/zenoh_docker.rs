@@ -9,9 +9,10 @@
 //!   (including the files the crates embed with `include_bytes!`);
 //! - `docker/compose.yaml` parses as YAML; the router is the official Zenoh
 //!   image of the Zenoh version in `Cargo.lock` running
-//!   `config/zenoh-router.json5`; the daemon and the replay run binaries of
-//!   the image with files that exist, connect to the router's service name
-//!   and port, and the daemon's state directory is a named volume.
+//!   `config/zenoh-router.json5`; the daemon, the replay and the bridge run
+//!   binaries of the image with files that exist, connect to the router's
+//!   service name and port, and the daemon's state directory is a named
+//!   volume; the bridge's sources parse, and its UDP port is published.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -181,7 +182,9 @@ fn the_dockerfile_builds_the_workspace_binaries_it_ships() {
         "Dockerfile builds {:?}, ships {:?}, runs {:?} as {:?} in {:?}; workspace binaries {workspace:?}",
         image.built, image.copied, image.cmd, image.user, image.workdir
     );
-    let expected: BTreeSet<String> = ["twind", "twin-replay", "twin"].map(String::from).into();
+    let expected: BTreeSet<String> = ["twind", "twin-replay", "twin-bridge", "twin"]
+        .map(String::from)
+        .into();
     assert_eq!(image.built, expected);
     assert_eq!(image.copied, expected);
     for bin in &image.built {
@@ -330,7 +333,7 @@ fn locked_zenoh_version() -> String {
 }
 
 #[test]
-fn the_compose_file_wires_router_daemon_and_replay() {
+fn the_compose_file_wires_router_daemon_replay_and_bridge() {
     let compose: Yaml = serde_yaml::from_str(&read("docker/compose.yaml")).expect("valid YAML");
     let services = &compose["services"];
     let image = image();
@@ -361,7 +364,7 @@ fn the_compose_file_wires_router_daemon_and_replay() {
     // Our services: the image built from this Dockerfile, programs of it,
     // files that exist, the router by service name and port.
     let mut volumes_used = Vec::new();
-    for name in ["twind", "replay"] {
+    for name in ["twind", "replay", "bridge"] {
         let service = &services[name];
         let build = &service["build"];
         let context = docker_dir
@@ -415,5 +418,32 @@ fn the_compose_file_wires_router_daemon_and_replay() {
     assert!(
         compose["volumes"].get(volume_name).is_some(),
         "{volume_name} is not a named volume of the file"
+    );
+
+    // The bridge: its sources are ones the bridge reads, and a UDP source's
+    // port is the one the container publishes (as UDP).
+    let bridge = &services["bridge"];
+    let words = strings(&bridge["command"]);
+    assert_eq!(words[0], "twin-bridge");
+    let sources: Vec<twin_bridge::spec::SourceSpec> = words
+        .windows(2)
+        .filter(|w| w[0] == "--source")
+        .map(|w| w[1].parse().expect("a source the bridge reads"))
+        .collect();
+    assert!(!sources.is_empty());
+    let published = strings(&bridge["ports"]);
+    for source in &sources {
+        if let twin_bridge::spec::Transport::Udp { bind, .. } = source.transport {
+            let port = format!(":{0}:{0}/udp", bind.port());
+            assert!(
+                published.iter().any(|p| p.ends_with(&port)),
+                "{source}: UDP {} not published ({published:?})",
+                bind.port()
+            );
+        }
+    }
+    assert!(
+        words.windows(2).any(|w| w[0] == "--vessel"),
+        "the bridge publishes as a vessel"
     );
 }
