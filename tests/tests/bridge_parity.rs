@@ -33,8 +33,15 @@ async fn a_trial_through_the_bridge_is_twin_analyze_of_the_file() {
     std::fs::write(&path, &log).unwrap();
     let analysis = analyze_path(&path, &AnalyzeOptions::default()).unwrap();
     let final_state = analysis.final_state.clone().expect("a final state");
-    let port_loss = analysis.thrusters.port.loss.expect("propeller speeds in the log");
-    assert!(port_loss > 0.1, "the trial's damage is seen offline: {port_loss}");
+    let port_loss = analysis
+        .thrusters
+        .port
+        .loss
+        .expect("propeller speeds in the log");
+    assert!(
+        port_loss > 0.1,
+        "the trial's damage is seen offline: {port_loss}"
+    );
 
     // The daemon, and a session watching what it says.
     let port = free_port();

@@ -223,7 +223,10 @@ fn one_run(sentences: &[String], mode: NmeaPublish) -> anyhow::Result<RunFigures
     };
     drop(probe);
     session.close().wait().map_err(|e| anyhow::anyhow!("{e}"))?;
-    receiver.close().wait().map_err(|e| anyhow::anyhow!("{e}"))?;
+    receiver
+        .close()
+        .wait()
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok(figures)
 }
 

@@ -128,7 +128,10 @@ async fn main() -> ExitCode {
 }
 
 fn bench(epochs: usize, runs: usize, publish: NmeaPublish) -> anyhow::Result<()> {
-    anyhow::ensure!(epochs > 0 && runs > 0, "--epochs and --runs must be positive");
+    anyhow::ensure!(
+        epochs > 0 && runs > 0,
+        "--epochs and --runs must be positive"
+    );
     println!(
         "twin-bridge bench: NMEA 0183 over UDP -> Zenoh put on loopback, {} sentences a run, publishing {}",
         epochs * 6,
@@ -147,10 +150,7 @@ fn bench(epochs: usize, runs: usize, publish: NmeaPublish) -> anyhow::Result<()>
             f.sent, f.forwarded, f.received, f.sentences_per_s
         );
     })?;
-    println!(
-        "median: {:.0} sentences/s",
-        report.median_sentences_per_s()
-    );
+    println!("median: {:.0} sentences/s", report.median_sentences_per_s());
     Ok(())
 }
 

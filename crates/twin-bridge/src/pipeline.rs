@@ -241,7 +241,13 @@ impl Pipeline {
         self.core.data_arrived();
         self.core.line_no += 1;
         decoder.set_receive_time(received_s);
-        decoder.decode_can_frame(raw_id, extended, data, self.core.line_no, &mut self.core.items);
+        decoder.decode_can_frame(
+            raw_id,
+            extended,
+            data,
+            self.core.line_no,
+            &mut self.core.items,
+        );
         let stamped = decoder.receiver_stamped();
         self.core.take_items(stamped);
         self.core.sync(decoder.stats());
@@ -488,8 +494,10 @@ impl Core {
                 true
             }
             Err(error) => {
-                self.counter
-                    .reject("publish_failed", &format_args!("publishing failed: {error}"));
+                self.counter.reject(
+                    "publish_failed",
+                    &format_args!("publishing failed: {error}"),
+                );
                 false
             }
         }

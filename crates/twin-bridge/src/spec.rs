@@ -160,9 +160,7 @@ impl fmt::Display for SourceSpec {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum SpecError {
     /// The format is not one of those known.
-    #[error(
-        "unknown format {0:?}: nmea0183, candump, ydraw, actisense, mavlink or gpsd"
-    )]
+    #[error("unknown format {0:?}: nmea0183, candump, ydraw, actisense, mavlink or gpsd")]
     Format(String),
     /// The transport is not one of those known, or not one the format
     /// comes over.
@@ -186,7 +184,9 @@ pub enum SpecError {
         expected: &'static str,
     },
     /// An option is unknown, malformed, or does not apply.
-    #[error("bad option {0:?}: baud=N (serial), publish=fixes|sentences (nmea0183), system=N (mavlink)")]
+    #[error(
+        "bad option {0:?}: baud=N (serial), publish=fixes|sentences (nmea0183), system=N (mavlink)"
+    )]
     Option(String),
 }
 
@@ -240,8 +240,8 @@ impl FromStr for SourceSpec {
         let mut pieces = text.split(',');
         let main = pieces.next().unwrap_or("");
         let (format_text, rest) = main.split_once(':').unwrap_or((main, ""));
-        let format = Format::parse(format_text)
-            .ok_or_else(|| SpecError::Format(format_text.to_owned()))?;
+        let format =
+            Format::parse(format_text).ok_or_else(|| SpecError::Format(format_text.to_owned()))?;
         let (transport_text, address) = rest.split_once(':').unwrap_or((rest, ""));
         let mut baud = None;
         let mut nmea_publish = NmeaPublish::Fixes;
@@ -250,7 +250,15 @@ impl FromStr for SourceSpec {
             let bad = || SpecError::Option(option.to_owned());
             let (key, value) = option.split_once('=').ok_or_else(bad)?;
             match (key, format) {
-                ("baud", _) => baud = Some(value.parse::<u32>().ok().filter(|b| *b > 0).ok_or_else(bad)?),
+                ("baud", _) => {
+                    baud = Some(
+                        value
+                            .parse::<u32>()
+                            .ok()
+                            .filter(|b| *b > 0)
+                            .ok_or_else(bad)?,
+                    )
+                }
                 ("publish", Format::Nmea0183) => {
                     nmea_publish = match value {
                         "fixes" => NmeaPublish::Fixes,

@@ -145,10 +145,7 @@ pub fn run(
     }
 }
 
-fn udp_socket(
-    bind: std::net::SocketAddr,
-    group: Option<IpAddr>,
-) -> io::Result<UdpSocket> {
+fn udp_socket(bind: std::net::SocketAddr, group: Option<IpAddr>) -> io::Result<UdpSocket> {
     use socket2::{Domain, Protocol, Socket, Type};
     let socket = Socket::new(Domain::for_address(bind), Type::DGRAM, Some(Protocol::UDP))?;
     // Other programs on the boat's computer (a chart plotter) listen on
@@ -376,7 +373,9 @@ fn can(
         });
         match socket {
             Ok(socket) => {
-                on(Event::Connected(format!("reading CAN interface {interface}")));
+                on(Event::Connected(format!(
+                    "reading CAN interface {interface}"
+                )));
                 while !stop.load(Ordering::Relaxed) {
                     match socket.read_frame() {
                         Ok(CanFrame::Data(frame)) => {

@@ -43,11 +43,17 @@ fn a_flood_of_garbage_on_the_udp_port() {
         }
         let mut wrong = sentence("GPGGA,042720.000,5954.000,N,01042.000,E,1,08,0.9,1.0,M,0.0,M,,");
         wrong.replace_range(wrong.len() - 2.., "00");
-        sender.send_to(wrong.as_bytes(), ("127.0.0.1", port)).unwrap();
+        sender
+            .send_to(wrong.as_bytes(), ("127.0.0.1", port))
+            .unwrap();
         if i % 10 == 0 {
-            sender.send_to(&vec![b'$'; 10_000], ("127.0.0.1", port)).unwrap();
+            sender
+                .send_to(&vec![b'$'; 10_000], ("127.0.0.1", port))
+                .unwrap();
         }
-        sender.send_to(format!("{s}\r\n").as_bytes(), ("127.0.0.1", port)).unwrap();
+        sender
+            .send_to(format!("{s}\r\n").as_bytes(), ("127.0.0.1", port))
+            .unwrap();
         std::thread::sleep(Duration::from_millis(2));
     }
     bridge.wait_until("every good fix", |sink| fixes(sink).len() == expected.len());

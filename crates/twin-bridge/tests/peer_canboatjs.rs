@@ -31,7 +31,11 @@ fn fast_pgns(text: &str) -> HashSet<u32> {
         .env("NODE_PATH", peers().join("node_modules"))
         .output()
         .expect("node runs");
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     serde_json::from_slice(&output.stdout).unwrap()
 }
 
@@ -72,11 +76,13 @@ fn layouts(name: &str, lines: usize) -> (String, Vec<(RawFormat, String)>) {
         taken += 1;
         reference.push_str(line);
         reference.push('\n');
-        let sequence = sequences.entry((header.id.source, header.id.pgn)).or_insert(0);
+        let sequence = sequences
+            .entry((header.id.source, header.id.pgn))
+            .or_insert(0);
         for (format, out) in &mut others {
             let fast = fast.contains(&header.id.pgn);
-            for l in message_lines(*format, header.time_s, header.id, &data, fast, *sequence)
-                .unwrap()
+            for l in
+                message_lines(*format, header.time_s, header.id, &data, fast, *sequence).unwrap()
             {
                 out.push_str(&l);
                 out.push('\n');
@@ -139,7 +145,11 @@ fn canboatjs_reads_every_layout_as_the_original() {
         // canboatjs decoded a message for every line of the original.
         let counts: Vec<u64> = report
             .lines()
-            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["messages"].as_u64().unwrap())
+            .map(|l| {
+                serde_json::from_str::<serde_json::Value>(l).unwrap()["messages"]
+                    .as_u64()
+                    .unwrap()
+            })
             .collect();
         assert_eq!(counts.len(), 4, "{report}");
         assert!(counts[0] > 2000, "{report}");

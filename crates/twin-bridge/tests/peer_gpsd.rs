@@ -17,13 +17,15 @@ use twin_wire::messages::TimeSource;
 fn gpsfake(log: &std::path::Path, port: u16) -> Child {
     let program = require_program("gpsfake", "apt-get install gpsd gpsd-clients");
     require_program("gpsd", "apt-get install gpsd");
-    let child = Child::spawn(Command::new(program)
-        .args(["-1", "-q", "-c", "0.05", "-P", &port.to_string()])
-        .arg(log)
-        // gpsfake is Debian's Python script, run with Debian's python3.
-        .env("PATH", "/usr/sbin:/usr/bin:/sbin:/bin")
-        .stdout(Stdio::null())
-        .stderr(Stdio::null()))
+    let child = Child::spawn(
+        Command::new(program)
+            .args(["-1", "-q", "-c", "0.05", "-P", &port.to_string()])
+            .arg(log)
+            // gpsfake is Debian's Python script, run with Debian's python3.
+            .env("PATH", "/usr/sbin:/usr/bin:/sbin:/bin")
+            .stdout(Stdio::null())
+            .stderr(Stdio::null()),
+    )
     .expect("gpsfake starts");
     let deadline = Instant::now() + PATIENCE;
     while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
@@ -90,10 +92,14 @@ fn gpsd_reports_become_fixes_and_a_restart_is_survived() {
     // gpsd reports its first epoch twice (a 2D, then a 3D TPV at the same
     // time): the repeat is not a new fix.
     let positions = source.records.get("position").copied().unwrap_or(0) as usize;
-    assert!(positions >= got.len() && positions <= got.len() + 2, "{source:?}");
+    assert!(
+        positions >= got.len() && positions <= got.len() + 2,
+        "{source:?}"
+    );
     // gpsd's first heading comes before any time: refused, counted.
     assert!(
-        source.rejected.keys().all(|r| r == "no_time") && source.rejected.values().sum::<u64>() <= 2,
+        source.rejected.keys().all(|r| r == "no_time")
+            && source.rejected.values().sum::<u64>() <= 2,
         "{:?}",
         source.rejected
     );

@@ -16,14 +16,19 @@ use twin_bridge::bench::boat_sentences;
 
 fn socat(dir: &std::path::Path) -> Child {
     let program = require_program("socat", "apt-get install socat");
-    let child = Child::spawn(Command::new(program)
-        .arg(format!(
-            "pty,raw,echo=0,link={}",
-            dir.join("bridge").display()
-        ))
-        .arg(format!("pty,raw,echo=0,link={}", dir.join("boat").display()))
-        .stdout(Stdio::null())
-        .stderr(Stdio::null()))
+    let child = Child::spawn(
+        Command::new(program)
+            .arg(format!(
+                "pty,raw,echo=0,link={}",
+                dir.join("bridge").display()
+            ))
+            .arg(format!(
+                "pty,raw,echo=0,link={}",
+                dir.join("boat").display()
+            ))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null()),
+    )
     .expect("socat starts");
     let deadline = Instant::now() + PATIENCE;
     while !(dir.join("bridge").exists() && dir.join("boat").exists()) {
@@ -66,11 +71,15 @@ fn a_serial_port_that_disappears_and_returns() {
 
     drop(peer);
     bridge.wait_stats("the loss counted", |s| {
-        s.sources.first().is_some_and(|s| !s.connected && !s.disconnects.is_empty())
+        s.sources
+            .first()
+            .is_some_and(|s| !s.connected && !s.disconnects.is_empty())
     });
     let _peer = socat(&dir);
     bridge.wait_stats("the port reopened", |s| {
-        s.sources.first().is_some_and(|s| s.connected && s.connects >= 2)
+        s.sources
+            .first()
+            .is_some_and(|s| s.connected && s.connects >= 2)
     });
     write_sentences(&dir, second);
     bridge.wait_until("the second half's fixes", |sink| fixes(sink).len() == 40);

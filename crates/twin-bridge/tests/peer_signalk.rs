@@ -85,7 +85,11 @@ fn signalk_server_sample_data_through_the_bridge_binary() {
             .rev()
             .find(|(k, _)| k == "asv/sk/bridge/stats")
             .map(|(_, p)| serde_json::from_slice(p).expect("a stats payload"));
-        if fixes.len() >= 3 && stats.as_ref().is_some_and(|s| s.sources[0].published.gnss >= 3) {
+        if fixes.len() >= 3
+            && stats
+                .as_ref()
+                .is_some_and(|s| s.sources[0].published.gnss >= 3)
+        {
             break (fixes, stats.unwrap());
         }
         assert!(

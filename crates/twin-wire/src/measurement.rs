@@ -83,7 +83,10 @@ impl fmt::Display for Source {
                 system,
                 fused: false,
             } => write!(f, "mavlink:{system}"),
-            Source::Mavlink { system, fused: true } => write!(f, "mavlink:{system}:ekf"),
+            Source::Mavlink {
+                system,
+                fused: true,
+            } => write!(f, "mavlink:{system}:ekf"),
             Source::Gpsd(device) => write!(f, "gpsd:{device}"),
         }
     }

@@ -33,10 +33,13 @@ fn convert(canboat: &str, layout: RawFormat) -> String {
             continue;
         }
         let header = parse_message(line.as_bytes(), &mut data).expect("the fixtures parse");
-        let sequence = sequences.entry((header.id.source, header.id.pgn)).or_insert(0);
+        let sequence = sequences
+            .entry((header.id.source, header.id.pgn))
+            .or_insert(0);
         // The logger's own PGNs (above 18 bits) never travel on a CAN bus.
         let fast = is_fast(header.id.pgn);
-        let Ok(lines) = message_lines(layout, header.time_s, header.id, &data, fast, *sequence) else {
+        let Ok(lines) = message_lines(layout, header.time_s, header.id, &data, fast, *sequence)
+        else {
             assert!(header.id.pgn > 0x3_FFFF, "{line}");
             continue;
         };

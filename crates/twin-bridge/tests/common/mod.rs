@@ -209,7 +209,10 @@ impl Child {
 impl Drop for Child {
     fn drop(&mut self) {
         let group = format!("-{}", self.0.id());
-        let _ = Command::new("kill").args(["-KILL", "--", &group]).status();
+        let _ = Command::new("kill")
+            .args(["-KILL", "--", &group])
+            .stderr(std::process::Stdio::null())
+            .status();
         let _ = self.0.kill();
         let _ = self.0.wait();
     }
@@ -220,19 +223,25 @@ pub fn fixes(sink: &MemorySink) -> Vec<twin_wire::messages::Decoded<twin_core::s
     sink.on(Key::Gnss)
         .iter()
         .map(|p| {
-            twin_wire::messages::decode_gnss(p)
-                .unwrap_or_else(|e| panic!("malformed gnss payload {e}: {}", String::from_utf8_lossy(p)))
+            twin_wire::messages::decode_gnss(p).unwrap_or_else(|e| {
+                panic!("malformed gnss payload {e}: {}", String::from_utf8_lossy(p))
+            })
         })
         .collect()
 }
 
 /// Every actuators payload decodes; their commands in order.
-pub fn commands(sink: &MemorySink) -> Vec<twin_wire::messages::Decoded<twin_wire::ActuatorCommand>> {
+pub fn commands(
+    sink: &MemorySink,
+) -> Vec<twin_wire::messages::Decoded<twin_wire::ActuatorCommand>> {
     sink.on(Key::Actuators)
         .iter()
         .map(|p| {
             twin_wire::messages::decode_actuators(p).unwrap_or_else(|e| {
-                panic!("malformed actuators payload {e}: {}", String::from_utf8_lossy(p))
+                panic!(
+                    "malformed actuators payload {e}: {}",
+                    String::from_utf8_lossy(p)
+                )
             })
         })
         .collect()

@@ -33,7 +33,7 @@
 use serde::Deserialize;
 
 use super::clock::DayClock;
-use super::{Clock, Decoder, Emit, Item, ReadOptions, ReadStats, RejectReason, reject_whole_line};
+use super::{Clock, Counted, Emit, LineDecoder, ReadOptions, RejectReason};
 use crate::measurement::{FixMethod, MAX_SPEED_MPS, Measurement, Source};
 use crate::messages::MessageError;
 use crate::time::parse_rfc3339;
@@ -69,11 +69,10 @@ struct Report {
     hdop: Option<f64>,
 }
 
-/// The stateful gpsd decoder (devices, hdop, clock).
+/// The state of the gpsd decoder (devices, hdop, clock).
 #[derive(Debug, Clone)]
-pub struct GpsdDecoder {
+pub struct GpsdState {
     options: ReadOptions,
-    stats: ReadStats,
     devices: Vec<String>,
     /// The latest SKY hdop of each device (by number).
     hdop: Vec<Option<f64>>,
@@ -83,6 +82,9 @@ pub struct GpsdDecoder {
     receive_time_s: Option<f64>,
     receiver_stamped: bool,
 }
+
+/// The gpsd decoder.
+pub type GpsdDecoder = Counted<GpsdState>;
 
 /// True when a line looks like a gpsd report (a JSON object with `class`).
 pub fn looks_like_gpsd(line: &[u8]) -> bool {
@@ -111,21 +113,22 @@ fn degrees(value: Option<f64>, field: &'static str) -> Result<Option<f64>, Rejec
         .transpose()
 }
 
-impl GpsdDecoder {
+impl Counted<GpsdState> {
     /// A decoder with `options`.
     pub fn new(options: ReadOptions) -> Self {
-        Self {
+        Counted::from_state(GpsdState {
             options,
-            stats: ReadStats::default(),
             devices: Vec::new(),
             hdop: Vec::new(),
             clock: DayClock::default(),
             own_time_seen: false,
             receive_time_s: None,
             receiver_stamped: false,
-        }
+        })
     }
+}
 
+impl GpsdState {
     fn device(&mut self, name: Option<&str>) -> u8 {
         let name = name.unwrap_or("");
         let index = match self.devices.iter().position(|d| d == name) {
@@ -273,28 +276,9 @@ impl GpsdDecoder {
     }
 }
 
-impl Decoder for GpsdDecoder {
-    fn decode_line(&mut self, line: &[u8], line_no: u64, out: &mut Vec<Item>) {
-        self.stats.lines += 1;
-        self.receiver_stamped = false;
-        let mut stats = std::mem::take(&mut self.stats);
-        let mut emit = Emit {
-            out,
-            stats: &mut stats,
-            line: line_no,
-        };
-        if let Err(reason) = self.report(line, &mut emit) {
-            emit.reject(reason);
-        }
-        self.stats = stats;
-    }
-
-    fn reject_line(&mut self, line_no: u64, reason: RejectReason, out: &mut Vec<Item>) {
-        reject_whole_line(&mut self.stats, line_no, reason, out);
-    }
-
-    fn stats(&self) -> &ReadStats {
-        &self.stats
+impl LineDecoder for GpsdState {
+    fn line(&mut self, line: &[u8], emit: &mut Emit<'_>) -> Result<(), RejectReason> {
+        self.report(line, emit)
     }
 
     fn state_bytes(&self) -> usize {
@@ -309,12 +293,16 @@ impl Decoder for GpsdDecoder {
     fn receiver_stamped(&self) -> bool {
         self.receiver_stamped
     }
+
+    fn begin_line(&mut self) {
+        self.receiver_stamped = false;
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::read::RejectKind;
+    use crate::read::{Decoder, Item, ReadStats, RejectKind};
 
     fn decode(lines: &[&str]) -> (Vec<Item>, ReadStats) {
         let mut d = GpsdDecoder::new(ReadOptions::default());
@@ -371,11 +359,26 @@ mod tests {
     #[test]
     fn bad_reports_are_refused_with_reasons() {
         for (line, kind) in [
-            (r#"{"class":"TPV","mode":1,"time":"2026-08-03T04:27:21Z","lat":1.0,"lon":2.0}"#, RejectKind::NotValid),
-            (r#"{"class":"TPV","mode":3,"time":"2026-08-03T04:27:21Z","lat":91.0,"lon":2.0}"#, RejectKind::OutOfRange),
-            (r#"{"class":"TPV","mode":3,"time":"2026-08-03T04:27:21Z","lat":1.0,"lon":2.0,"speed":-1}"#, RejectKind::OutOfRange),
-            (r#"{"class":"TPV","mode":3,"lat":1.0,"lon":2.0}"#, RejectKind::NoTime),
-            (r#"{"class":"TPV","mode":3,"time":"yesterday","lat":1.0,"lon":2.0}"#, RejectKind::BadTime),
+            (
+                r#"{"class":"TPV","mode":1,"time":"2026-08-03T04:27:21Z","lat":1.0,"lon":2.0}"#,
+                RejectKind::NotValid,
+            ),
+            (
+                r#"{"class":"TPV","mode":3,"time":"2026-08-03T04:27:21Z","lat":91.0,"lon":2.0}"#,
+                RejectKind::OutOfRange,
+            ),
+            (
+                r#"{"class":"TPV","mode":3,"time":"2026-08-03T04:27:21Z","lat":1.0,"lon":2.0,"speed":-1}"#,
+                RejectKind::OutOfRange,
+            ),
+            (
+                r#"{"class":"TPV","mode":3,"lat":1.0,"lon":2.0}"#,
+                RejectKind::NoTime,
+            ),
+            (
+                r#"{"class":"TPV","mode":3,"time":"yesterday","lat":1.0,"lon":2.0}"#,
+                RejectKind::BadTime,
+            ),
             (r#"{"class":"TPV","mode":"3D"}"#, RejectKind::Message),
             (r#"{"class":"TPV""#, RejectKind::Message),
             ("$GPGGA,1", RejectKind::UnknownFormat),
@@ -399,7 +402,11 @@ mod tests {
         let mut out = Vec::new();
         d.decode_line(br#"{"class":"ATT","heading":10.0}"#, 1, &mut out);
         assert!(out[0].is_err(), "a heading before any time: {out:?}");
-        d.decode_line(br#"{"class":"TPV","mode":2,"lat":1.0,"lon":2.0}"#, 2, &mut out);
+        d.decode_line(
+            br#"{"class":"TPV","mode":2,"lat":1.0,"lon":2.0}"#,
+            2,
+            &mut out,
+        );
         assert_eq!(out[1].as_ref().unwrap().time_s, 1_785_831_240.0);
         assert!(d.receiver_stamped());
         d.decode_line(
@@ -416,7 +423,11 @@ mod tests {
             out[3].as_ref().unwrap().time_s,
             out[2].as_ref().unwrap().time_s
         );
-        d.decode_line(br#"{"class":"TPV","mode":2,"lat":1.0,"lon":2.0}"#, 5, &mut out);
+        d.decode_line(
+            br#"{"class":"TPV","mode":2,"lat":1.0,"lon":2.0}"#,
+            5,
+            &mut out,
+        );
         assert!(out[4].is_err());
     }
 }

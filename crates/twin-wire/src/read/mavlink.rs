@@ -63,10 +63,7 @@ pub use mavlink::dialects::ardupilotmega as dialect;
 use twin_core::geodesy::{wrap_pi, wrap_two_pi};
 use twin_core::sample::{RADPS_PER_RPM, Side};
 
-use super::{
-    Clock, Decoder, Emit, Item, Monotonic, ReadOptions, ReadStats, RejectReason,
-    reject_whole_line,
-};
+use super::{Clock, Counted, Emit, LineDecoder, Monotonic, ReadOptions, RejectReason};
 use crate::measurement::{FixMethod, MAX_SPEED_MPS, Measurement, Source, ThrustCommand};
 use dialect::MavMessage;
 
@@ -128,9 +125,10 @@ impl PwmThrustMap {
         {
             return Err(ThrustMapError::PwmOrder);
         }
-        if let Some(p) = points.iter().find(|p| {
-            !p.1.is_finite() || p.1.abs() > crate::messages::MAX_ABS_THRUST_N
-        }) {
+        if let Some(p) = points
+            .iter()
+            .find(|p| !p.1.is_finite() || p.1.abs() > crate::messages::MAX_ABS_THRUST_N)
+        {
             return Err(ThrustMapError::Thrust(p.1));
         }
         let mut stored = [(0, 0.0); MAX_MAP_POINTS];
@@ -342,7 +340,10 @@ fn plausible_stamp(bytes: &[u8]) -> bool {
 /// True when `bytes` begin like a `.tlog` (used to detect the format).
 pub fn looks_like_tlog(bytes: &[u8]) -> bool {
     plausible_stamp(bytes)
-        && matches!(bytes.get(TLOG_STAMP_BYTES), Some(&MAGIC_V1) | Some(&MAGIC_V2))
+        && matches!(
+            bytes.get(TLOG_STAMP_BYTES),
+            Some(&MAGIC_V1) | Some(&MAGIC_V2)
+        )
 }
 
 impl MavlinkFramer {
@@ -450,12 +451,11 @@ impl MavlinkFramer {
     }
 }
 
-/// The stateful MAVLink decoder (see the module doc).
+/// The state of the MAVLink decoder (see the module doc).
 #[derive(Debug, Clone)]
-pub struct MavlinkDecoder {
+pub struct MavlinkState {
     options: ReadOptions,
     tlog: bool,
-    stats: ReadStats,
     monotonic: Monotonic,
     system: Option<u8>,
     /// Unix time minus boot time of the followed system, s.
@@ -471,6 +471,9 @@ pub struct MavlinkDecoder {
     receive_time_s: Option<f64>,
     receiver_stamped: bool,
 }
+
+/// The MAVLink decoder.
+pub type MavlinkDecoder = Counted<MavlinkState>;
 
 /// The messages read, by id.
 const GPS_RAW_INT: u32 = 24;
@@ -504,14 +507,13 @@ enum When {
     None,
 }
 
-impl MavlinkDecoder {
+impl Counted<MavlinkState> {
     /// A decoder of bare frames (`tlog` false: live streams, through a
     /// [`MavlinkFramer`]) or of `.tlog` records (stamp + frame).
     pub fn new(options: ReadOptions, tlog: bool) -> Self {
-        Self {
+        Counted::from_state(MavlinkState {
             options,
             tlog,
-            stats: ReadStats::default(),
             monotonic: Monotonic::default(),
             system: options.mavlink.system,
             boot_offset_s: None,
@@ -522,14 +524,16 @@ impl MavlinkDecoder {
             pwm: [None; 16],
             receive_time_s: None,
             receiver_stamped: false,
-        }
+        })
     }
 
     /// The system followed, once known.
     pub fn system(&self) -> Option<u8> {
-        self.system
+        self.state.system
     }
+}
 
+impl MavlinkState {
     /// The time of a record (see the module doc).
     fn time(&mut self, when: When, arrival_s: Option<f64>) -> Result<f64, RejectReason> {
         let vehicle = match when {
@@ -608,9 +612,11 @@ impl MavlinkDecoder {
         } else {
             mavlink::MavlinkVersion::V1
         };
-        let message = MavMessage::parse(version, h.message_id, &frame[h.payload])
-            .map_err(|_| RejectReason::Malformed {
-                what: "MAVLink payload",
+        let message =
+            MavMessage::parse(version, h.message_id, &frame[h.payload]).map_err(|_| {
+                RejectReason::Malformed {
+                    what: "MAVLink payload",
+                }
             })?;
         let system = h.system;
         let raw = Source::Mavlink {
@@ -892,40 +898,18 @@ fn speed(mps: f64, field: &'static str) -> Result<f64, RejectReason> {
     }
 }
 
-impl Decoder for MavlinkDecoder {
-    fn decode_line(&mut self, line: &[u8], line_no: u64, out: &mut Vec<Item>) {
-        self.stats.lines += 1;
-        self.receiver_stamped = false;
-        let mut stats = std::mem::take(&mut self.stats);
-        let mut emit = Emit {
-            out,
-            stats: &mut stats,
-            line: line_no,
-        };
+impl LineDecoder for MavlinkState {
+    fn line(&mut self, line: &[u8], emit: &mut Emit<'_>) -> Result<(), RejectReason> {
         let (arrival_s, frame) = if self.tlog {
             match line.split_first_chunk::<TLOG_STAMP_BYTES>() {
-                Some((stamp, frame)) => (
-                    Some(u64::from_be_bytes(*stamp) as f64 / 1e6),
-                    frame,
-                ),
+                Some((stamp, frame)) => (Some(u64::from_be_bytes(*stamp) as f64 / 1e6), frame),
                 None => (None, &[][..]),
             }
         } else {
             let live = matches!(self.options.clock, Clock::Receiver);
             (self.receive_time_s.filter(|_| live), line)
         };
-        if let Err(reason) = self.frame(frame, arrival_s, &mut emit) {
-            emit.reject(reason);
-        }
-        self.stats = stats;
-    }
-
-    fn reject_line(&mut self, line_no: u64, reason: RejectReason, out: &mut Vec<Item>) {
-        reject_whole_line(&mut self.stats, line_no, reason, out);
-    }
-
-    fn stats(&self) -> &ReadStats {
-        &self.stats
+        self.frame(frame, arrival_s, emit)
     }
 
     fn set_receive_time(&mut self, time_s: f64) {
@@ -935,13 +919,17 @@ impl Decoder for MavlinkDecoder {
     fn receiver_stamped(&self) -> bool {
         self.receiver_stamped
     }
+
+    fn begin_line(&mut self) {
+        self.receiver_stamped = false;
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::measurement::Record;
-    use crate::read::{LogFormat, LogReader, RejectKind};
+    use crate::read::{Decoder, Item, LogFormat, LogReader, ReadStats, RejectKind};
     use crate::write::mavlink::{frame_v2, tlog_record};
     use dialect::*;
 
@@ -1019,11 +1007,19 @@ mod tests {
         let arrival = T0 + 0.3; // the ground station's clock, 0.3 s late
         let log = tlog(&[
             (arrival, 1, system_time(BOOT_MS)),
-            (arrival, 1, gps(T0 + 0.2, GpsFixType::GPS_FIX_TYPE_RTK_FIXED)),
+            (
+                arrival,
+                1,
+                gps(T0 + 0.2, GpsFixType::GPS_FIX_TYPE_RTK_FIXED),
+            ),
             (arrival, 1, attitude(BOOT_MS + 250, 3.5)),
             (arrival, 1, servo(BOOT_MS + 260, 1900, 1300)),
             (arrival, 1, esc(1200, 600)),
-            (arrival, 255, MavMessage::HEARTBEAT(HEARTBEAT_DATA::default())),
+            (
+                arrival,
+                255,
+                MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()),
+            ),
         ]);
         let (items, stats) = read(&log);
         assert_eq!(stats.total_rejected(), 0, "{items:?}");

@@ -495,8 +495,95 @@ pub trait Decoder {
     }
 }
 
+/// What a format's decoder does with one line, apart from counting it: the
+/// part that differs between formats. [`Counted`] adds the counts and makes
+/// it a [`Decoder`].
+pub trait LineDecoder {
+    /// Decodes one line, emitting records (and rejections that do not end
+    /// the line); `Err` refuses the line.
+    fn line(&mut self, line: &[u8], emit: &mut Emit<'_>) -> Result<(), RejectReason>;
+
+    /// Bytes of state held beyond the fixed size.
+    fn state_bytes(&self) -> usize {
+        0
+    }
+
+    /// See [`Decoder::set_receive_time`].
+    fn set_receive_time(&mut self, _time_s: f64) {}
+
+    /// See [`Decoder::receiver_stamped`].
+    fn receiver_stamped(&self) -> bool {
+        false
+    }
+
+    /// A new line begins (forget what was said of the previous one).
+    fn begin_line(&mut self) {}
+}
+
+/// A format's [`LineDecoder`] with its [`ReadStats`]: the decoders of
+/// candump, Yacht Devices RAW, Actisense, gpsd and MAVLink.
+#[derive(Debug, Clone)]
+pub struct Counted<S> {
+    state: S,
+    stats: ReadStats,
+}
+
+impl<S: LineDecoder> Counted<S> {
+    fn from_state(state: S) -> Self {
+        Self {
+            state,
+            stats: ReadStats::default(),
+        }
+    }
+
+    /// Counts a line and decodes it with `body`, counting its refusal.
+    fn decode_with(
+        &mut self,
+        line_no: u64,
+        out: &mut Vec<Item>,
+        body: impl FnOnce(&mut S, &mut Emit<'_>) -> Result<(), RejectReason>,
+    ) {
+        self.stats.lines += 1;
+        self.state.begin_line();
+        let mut emit = Emit {
+            out,
+            stats: &mut self.stats,
+            line: line_no,
+        };
+        if let Err(reason) = body(&mut self.state, &mut emit) {
+            emit.reject(reason);
+        }
+    }
+}
+
+impl<S: LineDecoder> Decoder for Counted<S> {
+    fn decode_line(&mut self, line: &[u8], line_no: u64, out: &mut Vec<Item>) {
+        self.decode_with(line_no, out, |state, emit| state.line(line, emit));
+    }
+
+    fn reject_line(&mut self, line_no: u64, reason: RejectReason, out: &mut Vec<Item>) {
+        reject_whole_line(&mut self.stats, line_no, reason, out);
+    }
+
+    fn stats(&self) -> &ReadStats {
+        &self.stats
+    }
+
+    fn state_bytes(&self) -> usize {
+        self.state.state_bytes()
+    }
+
+    fn set_receive_time(&mut self, time_s: f64) {
+        self.state.set_receive_time(time_s);
+    }
+
+    fn receiver_stamped(&self) -> bool {
+        self.state.receiver_stamped()
+    }
+}
+
 /// Appends records and rejections to an output while counting them.
-pub(crate) struct Emit<'a> {
+pub struct Emit<'a> {
     pub(crate) out: &'a mut Vec<Item>,
     pub(crate) stats: &'a mut ReadStats,
     pub(crate) line: u64,
@@ -896,8 +983,9 @@ pub fn detect_line_format(line: &[u8]) -> Option<LogFormat> {
         b'A' if n2k_raw::looks_like(RawFormat::ActisenseAscii, line) => {
             Some(LogFormat::ActisenseAscii)
         }
-        b'(' | b'a'..=b'z' | b'A'..=b'Z' | b' ' => n2k_raw::looks_like(RawFormat::Candump, line)
-            .then_some(LogFormat::Candump),
+        b'(' | b'a'..=b'z' | b'A'..=b'Z' | b' ' => {
+            n2k_raw::looks_like(RawFormat::Candump, line).then_some(LogFormat::Candump)
+        }
         _ => None,
     }
 }

@@ -39,7 +39,7 @@
 use super::clock::{DayClock, Stamp};
 use super::fast_packet::FastPackets;
 use super::n2k::{MAX_DATA_BYTES, decode_message_or_frame};
-use super::{Clock, Decoder, Emit, Item, ReadOptions, ReadStats, RejectReason, reject_whole_line};
+use super::{Clock, Counted, Emit, Item, LineDecoder, ReadOptions, RejectReason};
 
 /// The largest 29-bit CAN id.
 pub const MAX_EXTENDED_ID: u32 = 0x1FFF_FFFF;
@@ -124,12 +124,11 @@ struct Parsed {
     whole: bool,
 }
 
-/// The stateful decoder of one raw format (clock, fast-packet joins).
+/// The state of a raw-format decoder (clock, fast-packet joins).
 #[derive(Debug, Clone)]
-pub struct N2kRawDecoder {
+pub struct RawState {
     format: RawFormat,
     options: ReadOptions,
-    stats: ReadStats,
     clock: DayClock,
     fast: FastPackets,
     /// The data bytes of the current line (reused).
@@ -138,24 +137,26 @@ pub struct N2kRawDecoder {
     receiver_stamped: bool,
 }
 
-impl N2kRawDecoder {
+/// The decoder of one raw format.
+pub type N2kRawDecoder = Counted<RawState>;
+
+impl Counted<RawState> {
     /// A decoder of `format` with `options`.
     pub fn new(format: RawFormat, options: ReadOptions) -> Self {
-        Self {
+        Counted::from_state(RawState {
             format,
             options,
-            stats: ReadStats::default(),
             clock: DayClock::default(),
             fast: FastPackets::default(),
             data: Vec::new(),
             receive_time_s: None,
             receiver_stamped: false,
-        }
+        })
     }
 
     /// The layout read.
     pub fn format(&self) -> RawFormat {
-        self.format
+        self.state.format
     }
 
     /// Decodes one CAN frame read from a live interface (SocketCAN): the
@@ -169,26 +170,16 @@ impl N2kRawDecoder {
         line_no: u64,
         out: &mut Vec<Item>,
     ) {
-        self.stats.lines += 1;
-        self.receiver_stamped = false;
-        let mut stats = std::mem::take(&mut self.stats);
-        let mut emit = Emit {
-            out,
-            stats: &mut stats,
-            line: line_no,
-        };
-        let result = match CanId::from_raw(raw_id) {
+        self.decode_with(line_no, out, |state, emit| match CanId::from_raw(raw_id) {
             Some(id) if extended && data.len() <= 8 => {
-                self.data.clear();
-                self.data.extend_from_slice(data);
-                self.message(
-                    Parsed {
-                        time: LineTime::Absent,
-                        id: Some(id),
-                        whole: false,
-                    },
-                    &mut emit,
-                )
+                state.data.clear();
+                state.data.extend_from_slice(data);
+                let frame = Parsed {
+                    time: LineTime::Absent,
+                    id: Some(id),
+                    whole: false,
+                };
+                state.message(frame, emit)
             }
             Some(_) if extended => Err(RejectReason::Malformed {
                 what: "data length",
@@ -197,14 +188,12 @@ impl N2kRawDecoder {
                 emit.stats.ignored += 1;
                 Ok(())
             }
-        };
-        if let Err(reason) = result {
-            emit.reject(reason);
-        }
-        self.stats = stats;
+        });
     }
+}
 
-    fn line(&mut self, line: &[u8], emit: &mut Emit<'_>) -> Result<(), RejectReason> {
+impl RawState {
+    fn parse(&mut self, line: &[u8], emit: &mut Emit<'_>) -> Result<(), RejectReason> {
         let line = line.trim_ascii();
         if line.is_empty() || line.first() == Some(&b'#') {
             emit.stats.blank += 1;
@@ -267,28 +256,9 @@ impl N2kRawDecoder {
     }
 }
 
-impl Decoder for N2kRawDecoder {
-    fn decode_line(&mut self, line: &[u8], line_no: u64, out: &mut Vec<Item>) {
-        self.stats.lines += 1;
-        self.receiver_stamped = false;
-        let mut stats = std::mem::take(&mut self.stats);
-        let mut emit = Emit {
-            out,
-            stats: &mut stats,
-            line: line_no,
-        };
-        if let Err(reason) = self.line(line, &mut emit) {
-            emit.reject(reason);
-        }
-        self.stats = stats;
-    }
-
-    fn reject_line(&mut self, line_no: u64, reason: RejectReason, out: &mut Vec<Item>) {
-        reject_whole_line(&mut self.stats, line_no, reason, out);
-    }
-
-    fn stats(&self) -> &ReadStats {
-        &self.stats
+impl LineDecoder for RawState {
+    fn line(&mut self, line: &[u8], emit: &mut Emit<'_>) -> Result<(), RejectReason> {
+        self.parse(line, emit)
     }
 
     fn state_bytes(&self) -> usize {
@@ -301,6 +271,10 @@ impl Decoder for N2kRawDecoder {
 
     fn receiver_stamped(&self) -> bool {
         self.receiver_stamped
+    }
+
+    fn begin_line(&mut self) {
+        self.receiver_stamped = false;
     }
 }
 
@@ -430,7 +404,8 @@ fn parse_candump(text: &str, data: &mut Vec<u8>) -> Result<Parsed, RejectReason>
 fn clock_time(text: &str) -> Result<f64, RejectReason> {
     let bad = RejectReason::Malformed { what: "time" };
     let mut parts = text.split(':');
-    let (Some(h), Some(m), Some(s), None) = (parts.next(), parts.next(), parts.next(), parts.next())
+    let (Some(h), Some(m), Some(s), None) =
+        (parts.next(), parts.next(), parts.next(), parts.next())
     else {
         return Err(bad);
     };
@@ -502,9 +477,9 @@ fn parse_actisense(text: &str, data: &mut Vec<u8>) -> Result<Parsed, RejectReaso
         .ok_or(RejectReason::UnknownFormat)?;
     // hhmmss.sss
     let time = crate::time::parse_hhmmss(time).map_err(RejectReason::BadTime)?;
-    let addresses = tokens.next().ok_or(RejectReason::Malformed {
-        what: "addresses",
-    })?;
+    let addresses = tokens
+        .next()
+        .ok_or(RejectReason::Malformed { what: "addresses" })?;
     if addresses.len() != 5 || !addresses.bytes().all(|b| b.is_ascii_hexdigit()) {
         return Err(RejectReason::Malformed { what: "addresses" });
     }
@@ -516,7 +491,9 @@ fn parse_actisense(text: &str, data: &mut Vec<u8>) -> Result<Parsed, RejectReaso
     if priority > 7 {
         return Err(RejectReason::Malformed { what: "priority" });
     }
-    let pgn = tokens.next().ok_or(RejectReason::Malformed { what: "PGN" })?;
+    let pgn = tokens
+        .next()
+        .ok_or(RejectReason::Malformed { what: "PGN" })?;
     if pgn.is_empty() || pgn.len() > 5 || !pgn.bytes().all(|b| b.is_ascii_hexdigit()) {
         return Err(RejectReason::Malformed { what: "PGN" });
     }
@@ -562,7 +539,7 @@ pub fn looks_like(format: RawFormat, line: &[u8]) -> bool {
 mod tests {
     use super::*;
     use crate::measurement::{Measurement, Source};
-    use crate::read::{RejectKind, Rejection};
+    use crate::read::{Decoder, ReadStats, RejectKind, Rejection};
 
     fn decode(format: RawFormat, lines: &[&str]) -> (Vec<Item>, ReadStats) {
         let mut d = N2kRawDecoder::new(format, ReadOptions::default());

@@ -371,8 +371,7 @@ impl State {
         tod_s: f64,
         options: &ReadOptions,
     ) -> Result<Stamp, RejectReason> {
-        self.clock
-            .dated(days, tod_s, options.backwards_tolerance_s)
+        self.clock.dated(days, tod_s, options.backwards_tolerance_s)
     }
 
     /// The time of a time-of-day-only sentence (see the module doc).
