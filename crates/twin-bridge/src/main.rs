@@ -5,7 +5,6 @@
 //! tracing, opens the Zenoh session and calls [`twin_bridge::run`]; the
 //! counts go to stderr once a second.
 
-use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -14,7 +13,6 @@ use std::time::Duration;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
-use tracing_subscriber::EnvFilter;
 use twin_bridge::spec::{NmeaPublish, SourceSpec, Transport};
 use twin_bridge::{BridgeConfig, output::ZenohOutputs};
 use twin_wire::{KeySpace, VesselId};
@@ -63,7 +61,7 @@ struct RunArgs {
     #[arg(long = "source", value_name = "SPEC")]
     sources: Vec<SourceSpec>,
     /// The key prefix.
-    #[arg(long, value_name = "PREFIX", default_value = "asv", value_parser = key_space)]
+    #[arg(long, value_name = "PREFIX", default_value = "asv", value_parser = twin_zenoh::process::key_space)]
     prefix: KeySpace,
     /// The MAVLink motors and PWM -> thrust map (TOML; example:
     /// config/mavlink-otter.toml) [default: outputs 1 and 3, the Otter's map].
@@ -84,10 +82,6 @@ struct RunArgs {
     zenoh: ZenohArgs,
 }
 
-fn key_space(text: &str) -> Result<KeySpace, String> {
-    KeySpace::new(text).map_err(|e| format!("{e}: chunks of letters, digits, '-', '_', '.'"))
-}
-
 fn publish_mode(text: &str) -> Result<NmeaPublish, String> {
     match text {
         "fixes" => Ok(NmeaPublish::Fixes),
@@ -99,14 +93,7 @@ fn publish_mode(text: &str) -> Result<NmeaPublish, String> {
 #[tokio::main]
 async fn main() -> ExitCode {
     let cli = Cli::parse();
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| EnvFilter::new("warn,twin_bridge=info")),
-        )
-        .with_writer(std::io::stderr)
-        .with_ansi(std::io::stderr().is_terminal())
-        .init();
+    twin_zenoh::process::init_logging("warn,twin_bridge=info");
     let result = match cli.command {
         Some(Command::Bench {
             epochs,

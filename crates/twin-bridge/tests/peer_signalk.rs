@@ -18,6 +18,9 @@ use twin_bridge::stats::BridgeStats;
 use twin_wire::messages::decode_gnss;
 use zenoh::Wait;
 
+/// A key and its payload.
+type Received = (String, Vec<u8>);
+
 #[test]
 fn signalk_server_sample_data_through_the_bridge_binary() {
     let server = require_node_module("signalk-server");
@@ -46,7 +49,7 @@ fn signalk_server_sample_data_through_the_bridge_binary() {
         ..twin_zenoh::ZenohArgs::default()
     };
     let session = zenoh::open(args.to_config().unwrap()).wait().unwrap();
-    let received: Arc<Mutex<Vec<(String, Vec<u8>)>>> = Arc::default();
+    let received: Arc<Mutex<Vec<Received>>> = Arc::default();
     let sink = received.clone();
     let _subscriber = session
         .declare_subscriber("asv/sk/**")

@@ -284,7 +284,7 @@ const MALFORMED_DATA: RejectReason = RejectReason::Malformed { what: "data bytes
 /// Reads hex byte pairs (`"0A"`, separated or not) into `out`.
 fn hex_bytes(text: &str, out: &mut Vec<u8>, limit: usize) -> Result<(), RejectReason> {
     let bytes = text.as_bytes();
-    if bytes.len() % 2 != 0 {
+    if !bytes.len().is_multiple_of(2) {
         return Err(MALFORMED_DATA);
     }
     for pair in bytes.chunks_exact(2) {
