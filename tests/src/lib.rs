@@ -242,6 +242,7 @@ pub mod wire {
             yaw_rate_radps: None,
             hdop: Some(0.8),
             replay: false,
+            time_source: twin_wire::messages::TimeSource::Source,
         })
         .expect("JSON")
     }

@@ -186,7 +186,9 @@ fn the_dockerfile_builds_the_workspace_binaries_it_ships() {
         "Dockerfile builds {:?}, ships {:?}, runs {:?} as {:?} in {:?}; workspace binaries {workspace:?}",
         image.built, image.copied, image.cmd, image.user, image.workdir
     );
-    let expected: BTreeSet<String> = ["twind", "twin-replay", "twin"].map(String::from).into();
+    let expected: BTreeSet<String> = ["twind", "twin-replay", "twin-bridge", "twin"]
+        .map(String::from)
+        .into();
     assert_eq!(image.built, expected);
     assert_eq!(image.copied, expected);
     for bin in &image.built {
@@ -555,5 +557,32 @@ fn the_compose_file_wires_router_daemon_and_replay_safely() {
     assert!(
         compose["volumes"].get(volume_name).is_some(),
         "{volume_name} is not a named volume of the file"
+    );
+
+    // The bridge: its sources are ones the bridge reads, and a UDP source's
+    // port is the one the container publishes (as UDP).
+    let bridge = &services["bridge"];
+    let words = strings(&bridge["command"]);
+    assert_eq!(words[0], "twin-bridge");
+    let sources: Vec<twin_bridge::spec::SourceSpec> = words
+        .windows(2)
+        .filter(|w| w[0] == "--source")
+        .map(|w| w[1].parse().expect("a source the bridge reads"))
+        .collect();
+    assert!(!sources.is_empty());
+    let published = strings(&bridge["ports"]);
+    for source in &sources {
+        if let twin_bridge::spec::Transport::Udp { bind, .. } = source.transport {
+            let port = format!(":{0}:{0}/udp", bind.port());
+            assert!(
+                published.iter().any(|p| p.ends_with(&port)),
+                "{source}: UDP {} not published ({published:?})",
+                bind.port()
+            );
+        }
+    }
+    assert!(
+        words.windows(2).any(|w| w[0] == "--vessel"),
+        "the bridge publishes as a vessel"
     );
 }

@@ -4,13 +4,11 @@
 //! sets up tracing and calls [`twin_replay::run`]; progress goes to stderr
 //! about once a second, the summary to stdout.
 
-use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
 use clap::Parser;
-use tracing_subscriber::EnvFilter;
 use twin_replay::{Rate, ReplayOptions};
 use twin_wire::{AssemblerConfig, KeySpace, VesselId};
 use twin_zenoh::ZenohArgs;
@@ -40,7 +38,7 @@ struct Cli {
     #[arg(long = "loop", value_name = "N", default_value_t = 1)]
     loops: u32,
     /// The key prefix.
-    #[arg(long, value_name = "PREFIX", default_value = "asv", value_parser = key_space)]
+    #[arg(long, value_name = "PREFIX", default_value = "asv", value_parser = twin_zenoh::process::key_space)]
     prefix: KeySpace,
     #[command(flatten)]
     zenoh: ZenohArgs,
@@ -75,21 +73,10 @@ fn positive_seconds(text: &str) -> Result<f64, String> {
     }
 }
 
-fn key_space(text: &str) -> Result<KeySpace, String> {
-    KeySpace::new(text).map_err(|e| format!("{e}: chunks of letters, digits, '-', '_', '.'"))
-}
-
 #[tokio::main]
 async fn main() -> ExitCode {
     let cli = Cli::parse();
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| EnvFilter::new("warn,twin_replay=info")),
-        )
-        .with_writer(std::io::stderr)
-        .with_ansi(std::io::stderr().is_terminal())
-        .init();
+    twin_zenoh::process::init_logging("warn,twin_replay=info");
     match replay(cli).await {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {

@@ -277,6 +277,16 @@ impl FixAssembler {
         self.process(record, out);
     }
 
+    /// A live stream has gone quiet: emits the pending fix now rather than
+    /// when the next record comes (a 1 Hz receiver's fix would otherwise
+    /// wait a second). Nothing while the sources are still being chosen.
+    /// What arrives later with the same time as that fix no longer joins it.
+    pub fn flush_idle(&mut self, out: &mut Vec<Assembled>) {
+        if !self.deciding {
+            self.flush(out);
+        }
+    }
+
     /// Ends the stream: decides if still deciding, emits the last fix.
     pub fn finish(&mut self, out: &mut Vec<Assembled>) {
         if self.deciding {

@@ -59,6 +59,18 @@ pub enum Source {
     Nmea(Talker),
     /// The project's own JSON messages.
     Json,
+    /// A MAVLink system (its system id): `fused` is false for what its GNSS
+    /// receiver reports (`GPS_RAW_INT`), true for the autopilot's own
+    /// estimates (`GLOBAL_POSITION_INT`, `ATTITUDE`, `VFR_HUD`), so that the
+    /// assembler's source choice tells a receiver's fix from a filtered one.
+    Mavlink {
+        /// The MAVLink system id.
+        system: u8,
+        /// The autopilot's estimate rather than the receiver's measurement.
+        fused: bool,
+    },
+    /// A device of a gpsd daemon, numbered in the order gpsd first names it.
+    Gpsd(u8),
 }
 
 impl fmt::Display for Source {
@@ -67,13 +79,25 @@ impl fmt::Display for Source {
             Source::N2k(address) => write!(f, "n2k:{address}"),
             Source::Nmea(talker) => write!(f, "nmea:{talker}"),
             Source::Json => f.write_str("json"),
+            Source::Mavlink {
+                system,
+                fused: false,
+            } => write!(f, "mavlink:{system}"),
+            Source::Mavlink {
+                system,
+                fused: true,
+            } => write!(f, "mavlink:{system}:ekf"),
+            Source::Gpsd(device) => write!(f, "gpsd:{device}"),
         }
     }
 }
 
-/// Why a source name (`n2k:25`, `nmea:GP`, `json`) cannot be read.
+/// Why a source name (`n2k:25`, `nmea:GP`, `json`, `mavlink:1`,
+/// `mavlink:1:ekf`, `gpsd:0`) cannot be read.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
-#[error("a source is `n2k:ADDRESS` (0-255), `nmea:TT` (talker id) or `json`")]
+#[error(
+    "a source is `n2k:ADDRESS` (0-255), `nmea:TT` (talker id), `json`, `mavlink:SYSTEM`, `mavlink:SYSTEM:ekf` or `gpsd:DEVICE`"
+)]
 pub struct SourceParseError;
 
 impl FromStr for Source {
@@ -86,6 +110,22 @@ impl FromStr for Source {
             return address
                 .parse::<u8>()
                 .map(Source::N2k)
+                .map_err(|_| SourceParseError);
+        }
+        if let Some(rest) = s.strip_prefix("mavlink:") {
+            let (system, fused) = match rest.strip_suffix(":ekf") {
+                Some(system) => (system, true),
+                None => (rest, false),
+            };
+            return system
+                .parse::<u8>()
+                .map(|system| Source::Mavlink { system, fused })
+                .map_err(|_| SourceParseError);
+        }
+        if let Some(device) = s.strip_prefix("gpsd:") {
+            return device
+                .parse::<u8>()
+                .map(Source::Gpsd)
                 .map_err(|_| SourceParseError);
         }
         if let Some(talker) = s.strip_prefix("nmea:") {
@@ -387,11 +427,38 @@ mod tests {
             Source::N2k(25),
             Source::Json,
             Source::Nmea(Talker::new(*b"II").unwrap()),
+            Source::Mavlink {
+                system: 1,
+                fused: false,
+            },
+            Source::Mavlink {
+                system: 255,
+                fused: true,
+            },
+            Source::Gpsd(0),
         ] {
             assert_eq!(s.to_string().parse::<Source>(), Ok(s));
         }
         assert_eq!(Source::N2k(52).to_string(), "n2k:52");
-        for bad in ["n2k:256", "n2k:", "nmea:gp", "nmea:GPS", "JSON", ""] {
+        assert_eq!(
+            "mavlink:1:ekf".parse::<Source>(),
+            Ok(Source::Mavlink {
+                system: 1,
+                fused: true
+            })
+        );
+        for bad in [
+            "n2k:256",
+            "n2k:",
+            "nmea:gp",
+            "nmea:GPS",
+            "JSON",
+            "",
+            "mavlink:",
+            "mavlink:1:",
+            "mavlink:256",
+            "gpsd:x",
+        ] {
             assert!(bad.parse::<Source>().is_err(), "{bad}");
         }
     }

@@ -10,15 +10,24 @@
 //!  "hdop":0.9,"replay":true}
 //! ```
 //! `heading_rad`, `yaw_rate_radps` (a rate gyro or rate-of-turn sensor,
-//! positive turning to starboard), `hdop` and `replay` are optional. Angles
-//! are radians; one outside [-2 pi, 4 pi] is refused (most likely degrees).
-//! Actuators:
+//! positive turning to starboard), `hdop`, `replay` and `time_source` are
+//! optional. Angles are radians; one outside [-2 pi, 4 pi] is refused (most
+//! likely degrees). Actuators:
 //! ```json
 //! {"time":"2026-08-03T04:27:20.588Z","rpm":{"port":1200.0,"starboard":1185.5}}
 //! {"time":"2026-08-03T04:27:20.588Z","thrust_n":{"port":40.0,"starboard":38.5}}
 //! ```
-//! exactly one of `rpm` and `thrust_n`; `replay` optional. Unknown fields are
-//! ignored (so the contract can grow), missing required ones are errors.
+//! exactly one of `rpm` and `thrust_n`; `replay` and `time_source` optional.
+//! Unknown fields are ignored (so the contract can grow), missing required
+//! ones are errors.
+//!
+//! `time_source` says whose clock `time` is: `"source"` (the default, and
+//! what a payload without the field means) for the source's own time stamp,
+//! a GNSS time or a logger's; `"receiver"` when the source gave none and
+//! the sender stamped the message with the time it received it (the bridge
+//! does that for NMEA 2000 frames and for MAVLink before the vehicle's
+//! clock is known). Encoders leave the field out when it is `"source"`, so
+//! such payloads are byte for byte what they were before the field existed.
 //!
 //! Payloads larger than the limit (default [`DEFAULT_MAX_PAYLOAD_BYTES`]) are
 //! refused before any parsing.
@@ -49,6 +58,32 @@ pub fn plausible_radians(angle_rad: f64) -> bool {
     (-std::f64::consts::TAU..=2.0 * std::f64::consts::TAU).contains(&angle_rad)
 }
 
+/// Whose clock a payload's `time` is (see the module doc).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TimeSource {
+    /// The source's own time stamp (a GNSS time, a logger's time stamp).
+    #[default]
+    Source,
+    /// The time the sender received the data: the source gave no time.
+    Receiver,
+}
+
+impl TimeSource {
+    /// True for [`TimeSource::Source`], the default left out on the wire.
+    pub fn is_source(&self) -> bool {
+        *self == TimeSource::Source
+    }
+
+    /// `"source"` or `"receiver"`, as on the wire.
+    pub fn name(self) -> &'static str {
+        match self {
+            TimeSource::Source => "source",
+            TimeSource::Receiver => "receiver",
+        }
+    }
+}
+
 /// The GNSS fix payload, as on the wire.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GnssMessage {
@@ -75,6 +110,9 @@ pub struct GnssMessage {
     /// True when the fix is replayed from a log rather than live.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub replay: bool,
+    /// Whose clock `time` is; absent means the source's.
+    #[serde(default, skip_serializing_if = "TimeSource::is_source")]
+    pub time_source: TimeSource,
 }
 
 /// A port/starboard pair of numbers, as on the wire.
@@ -100,6 +138,9 @@ pub struct ActuatorsMessage {
     /// True when replayed from a log rather than live.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub replay: bool,
+    /// Whose clock `time` is; absent means the source's.
+    #[serde(default, skip_serializing_if = "TimeSource::is_source")]
+    pub time_source: TimeSource,
 }
 
 /// Why a payload is refused. The JSON parser's own error is summarised into
@@ -204,13 +245,15 @@ impl From<serde_json::Error> for MessageError {
     }
 }
 
-/// A decoded input with its replay flag.
+/// A decoded input with its replay flag and the clock of its time.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Decoded<T> {
     /// The validated value.
     pub value: T,
     /// True when the sender marked it as replayed.
     pub replay: bool,
+    /// Whose clock the value's time is.
+    pub time_source: TimeSource,
 }
 
 /// A validated actuators command: speeds or thrusts.
@@ -299,6 +342,7 @@ impl GnssMessage {
             yaw_rate_radps: fix.yaw_rate_radps,
             hdop: fix.hdop,
             replay,
+            time_source: TimeSource::Source,
         };
         // Encode only what decodes: the same checks both ways.
         message.to_fix()?;
@@ -356,6 +400,7 @@ impl ActuatorsMessage {
                 }),
                 thrust_n: None,
                 replay,
+                time_source: TimeSource::Source,
             },
             ActuatorCommand::Thrust(t) => ActuatorsMessage {
                 time: format_rfc3339(t.time_s)?,
@@ -365,6 +410,7 @@ impl ActuatorsMessage {
                     starboard: t.starboard_n,
                 }),
                 replay,
+                time_source: TimeSource::Source,
             },
         };
         message.to_command()?;
@@ -398,6 +444,7 @@ pub fn decode_gnss_limited(
     Ok(Decoded {
         value: message.to_fix()?,
         replay: message.replay,
+        time_source: message.time_source,
     })
 }
 
@@ -417,18 +464,43 @@ pub fn decode_actuators_limited(
     Ok(Decoded {
         value: message.to_command()?,
         replay: message.replay,
+        time_source: message.time_source,
     })
 }
 
 /// Encodes a fix as a GNSS payload (fails when it would not decode).
 pub fn encode_gnss(fix: &GnssFix, replay: bool) -> Result<Vec<u8>, MessageError> {
-    let message = GnssMessage::from_fix(fix, replay)?;
+    encode_gnss_stamped(fix, replay, TimeSource::Source)
+}
+
+/// [`encode_gnss`], saying whose clock the fix's time is.
+pub fn encode_gnss_stamped(
+    fix: &GnssFix,
+    replay: bool,
+    time_source: TimeSource,
+) -> Result<Vec<u8>, MessageError> {
+    let message = GnssMessage {
+        time_source,
+        ..GnssMessage::from_fix(fix, replay)?
+    };
     Ok(serde_json::to_vec(&message)?)
 }
 
 /// Encodes a command as an actuators payload (fails when it would not decode).
 pub fn encode_actuators(command: &ActuatorCommand, replay: bool) -> Result<Vec<u8>, MessageError> {
-    let message = ActuatorsMessage::from_command(command, replay)?;
+    encode_actuators_stamped(command, replay, TimeSource::Source)
+}
+
+/// [`encode_actuators`], saying whose clock the command's time is.
+pub fn encode_actuators_stamped(
+    command: &ActuatorCommand,
+    replay: bool,
+    time_source: TimeSource,
+) -> Result<Vec<u8>, MessageError> {
+    let message = ActuatorsMessage {
+        time_source,
+        ..ActuatorsMessage::from_command(command, replay)?
+    };
     Ok(serde_json::to_vec(&message)?)
 }
 
@@ -462,6 +534,57 @@ mod tests {
         assert!(!d.replay);
         assert_eq!(d.value.heading_rad, None);
         assert_eq!(d.value.hdop, None);
+    }
+
+    #[test]
+    fn time_source_defaults_to_the_source_and_round_trips() {
+        // Without the field: the source's clock (old payloads stay valid).
+        assert_eq!(
+            decode_gnss(FIX.as_bytes()).unwrap().time_source,
+            TimeSource::Source
+        );
+        let fix = decode_gnss(FIX.as_bytes()).unwrap().value;
+        // The default is left out on the wire: byte for byte the old payload.
+        let plain = encode_gnss(&fix, false).unwrap();
+        assert!(!String::from_utf8_lossy(&plain).contains("time_source"));
+        assert_eq!(
+            encode_gnss_stamped(&fix, false, TimeSource::Source).unwrap(),
+            plain
+        );
+        let stamped = encode_gnss_stamped(&fix, false, TimeSource::Receiver).unwrap();
+        assert!(String::from_utf8_lossy(&stamped).contains(r#""time_source":"receiver""#));
+        let back = decode_gnss(&stamped).unwrap();
+        assert_eq!(back.time_source, TimeSource::Receiver);
+        assert_eq!(back.value, fix);
+        let explicit = FIX.replace("\"replay\":true", "\"time_source\":\"source\"");
+        assert_eq!(
+            decode_gnss(explicit.as_bytes()).unwrap().time_source,
+            TimeSource::Source
+        );
+        // Any other clock is refused as the wrong shape.
+        let bad = FIX.replace("\"replay\":true", "\"time_source\":\"gps\"");
+        assert!(matches!(
+            decode_gnss(bad.as_bytes()),
+            Err(MessageError::Json {
+                category: JsonCategory::Data,
+                ..
+            })
+        ));
+        // Actuators carry it the same way.
+        let cmd = ActuatorCommand::Thrust(ThrustCommand {
+            time_s: fix.time_s,
+            port_n: 10.0,
+            starboard_n: -5.0,
+        });
+        let payload = encode_actuators_stamped(&cmd, false, TimeSource::Receiver).unwrap();
+        let d = decode_actuators(&payload).unwrap();
+        assert_eq!((d.value, d.time_source), (cmd, TimeSource::Receiver));
+        assert_eq!(
+            decode_actuators(&encode_actuators(&cmd, false).unwrap())
+                .unwrap()
+                .time_source,
+            TimeSource::Source
+        );
     }
 
     #[test]

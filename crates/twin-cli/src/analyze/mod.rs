@@ -28,7 +28,8 @@
 //! ```text
 //! schema            "twin-analyze/1"
 //! log               the path given
-//! format            "nmea0183" | "n2k" | "json_lines"
+//! format            "nmea0183" | "n2k" | "json_lines" | "candump" | "ydraw" |
+//!                   "actisense_ascii" | "gpsd_json" | "mavlink_tlog"
 //! span              {start, end, duration_s} of the records read, or null
 //! sources           {position, course, heading}: "n2k:25", "nmea:GP", "json" or null
 //! samples           inputs the twin used: GNSS fixes + propeller samples
@@ -223,11 +224,7 @@ fn finite(v: f64) -> Option<f64> {
 }
 /// The format's name in reports.
 pub fn format_name(f: LogFormat) -> &'static str {
-    match f {
-        LogFormat::Nmea0183 => "nmea0183",
-        LogFormat::N2k => "n2k",
-        LogFormat::JsonLines => "json_lines",
-    }
+    f.name()
 }
 
 /// Interpolates the truth at `time_s` (linear in lat/lon; `None` outside).

@@ -103,11 +103,7 @@ fn time(time_s: f64) -> String {
 }
 
 fn format_name(format: LogFormat) -> &'static str {
-    match format {
-        LogFormat::Nmea0183 => "NMEA 0183",
-        LogFormat::N2k => "canboat NMEA 2000",
-        LogFormat::JsonLines => "JSON lines",
-    }
+    format.description()
 }
 
 /// One line: `log 2026-08-03T04:27:20.588Z (+123.4 s), 42.0 %, published

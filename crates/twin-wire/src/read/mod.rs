@@ -1,5 +1,6 @@
-//! Streaming log readers: NMEA 0183 text, canboat NMEA 2000 text and the
-//! project's JSON lines, picked by content.
+//! Streaming log readers, picked by content: NMEA 0183 text; NMEA 2000 as
+//! canboat text, candump, Yacht Devices RAW and Actisense N2K ASCII; gpsd's
+//! JSON reports; MAVLink telemetry logs (`.tlog`); the project's JSON lines.
 //!
 //! # Shape
 //! Each format has a line [`Decoder`] (stateful: the NMEA 0183 one keeps the
@@ -10,15 +11,21 @@
 //! it holds one line at a time (at most `max_line_bytes`; longer lines are
 //! skipped to their end and rejected as `LineTooLong`) and at most the few
 //! items of one line, so memory stays constant whatever the log's length.
-//! [`LogReader::open`] looks at the first non-blank lines to pick the format.
+//! [`LogReader::open`] looks at the first non-blank lines to pick the format
+//! (a `.tlog` is binary: it is recognised by its first bytes, and its
+//! "lines" are its records, found by [`mavlink::MavlinkFramer`]).
 //!
 //! The decoders are public on their own too: the daemon feeds them payloads
-//! of `{prefix}/{vessel}/nmea` line by line, keeping one decoder per vessel.
+//! of `{prefix}/{vessel}/nmea` line by line, keeping one decoder per vessel,
+//! and the bridge feeds them what it receives live, telling each decoder
+//! when it received a line ([`Decoder::set_receive_time`]).
 //!
 //! # Time
 //! Every record's `time_s` is UTC seconds since the Unix epoch. NMEA 2000 and
 //! JSON lines carry a full timestamp on every line. NMEA 0183 timing is
-//! described in [`nmea0183`]. In every format a record more than
+//! described in [`nmea0183`], that of the other formats in their modules;
+//! [`Clock`] says whether a format without time of its own takes its log's
+//! time stamps or the time a line was received. In every format a record more than
 //! `backwards_tolerance_s` older than the newest time seen so far is
 //! rejected as `TimeBackwards`; gaps forward are accepted as they are.
 //!
@@ -26,8 +33,13 @@
 //! Every input byte sequence gives records, rejections or nothing; tests and
 //! fuzz targets feed random bytes to each decoder.
 
+pub(crate) mod clock;
+pub mod fast_packet;
+pub mod gpsd;
 pub mod jsonl;
+pub mod mavlink;
 pub mod n2k;
+pub mod n2k_raw;
 pub mod nmea0183;
 
 use std::collections::VecDeque;
@@ -39,8 +51,11 @@ use crate::measurement::{Measurement, MeasurementKind, Record, Source};
 use crate::messages::MessageError;
 use crate::time::{CivilDate, TimeError};
 
+pub use gpsd::GpsdDecoder;
 pub use jsonl::JsonlDecoder;
+pub use mavlink::{MavlinkDecoder, MavlinkOptions};
 pub use n2k::N2kDecoder;
+pub use n2k_raw::{N2kRawDecoder, RawFormat};
 pub use nmea0183::NmeaDecoder;
 
 /// What a reader yields: a record, or why a line (or part of it) was refused.
@@ -160,6 +175,12 @@ pub enum RejectReason {
     /// A JSON line that is not a valid project message.
     #[error("invalid message: {0}")]
     Message(MessageError),
+    /// Telemetry from a MAVLink system other than the one followed.
+    #[error("message of MAVLink system {system}, another than the one followed")]
+    OtherSystem {
+        /// Its system id.
+        system: u8,
+    },
     /// Reading the input failed; the reader stops after this.
     #[error("read error: {0:?}")]
     Io(io::ErrorKind),
@@ -204,13 +225,15 @@ pub enum RejectKind {
     TimeBackwards,
     /// [`RejectReason::Message`].
     Message,
+    /// [`RejectReason::OtherSystem`].
+    OtherSystem,
     /// [`RejectReason::Io`].
     Io,
 }
 
 impl RejectKind {
     /// Every kind, in declaration order.
-    pub const ALL: [RejectKind; 19] = [
+    pub const ALL: [RejectKind; 20] = [
         RejectKind::LineTooLong,
         RejectKind::NotText,
         RejectKind::UnknownFormat,
@@ -229,6 +252,7 @@ impl RejectKind {
         RejectKind::NoDate,
         RejectKind::TimeBackwards,
         RejectKind::Message,
+        RejectKind::OtherSystem,
         RejectKind::Io,
     ];
 
@@ -253,6 +277,7 @@ impl RejectKind {
             RejectKind::NoDate => "no_date",
             RejectKind::TimeBackwards => "time_backwards",
             RejectKind::Message => "message",
+            RejectKind::OtherSystem => "other_system",
             RejectKind::Io => "io",
         }
     }
@@ -280,6 +305,7 @@ impl RejectReason {
             RejectReason::NoDate => RejectKind::NoDate,
             RejectReason::TimeBackwards { .. } => RejectKind::TimeBackwards,
             RejectReason::Message(_) => RejectKind::Message,
+            RejectReason::OtherSystem { .. } => RejectKind::OtherSystem,
             RejectReason::Io(_) => RejectKind::Io,
         }
     }
@@ -389,6 +415,19 @@ impl Serialize for ReadStats {
     }
 }
 
+/// Which clock stamps the records of a format that has no time of its own
+/// (NMEA 2000 frames), or no time in a given line (a gpsd report without
+/// `time`, MAVLink before the vehicle's clock is known).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Clock {
+    /// The log's own time stamps (a logger's, a `.tlog`'s): reading files.
+    #[default]
+    Log,
+    /// The time each line was received, given by
+    /// [`Decoder::set_receive_time`]: live inputs.
+    Receiver,
+}
+
 /// Options shared by the readers.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReadOptions {
@@ -403,6 +442,10 @@ pub struct ReadOptions {
     /// times are then seconds since its first midnight) and counts each such
     /// record in `ReadStats::undated`.
     pub assumed_date: Option<CivilDate>,
+    /// Which clock stamps what has no time of its own (see [`Clock`]).
+    pub clock: Clock,
+    /// How MAVLink is read (system, motors, PWM -> thrust map).
+    pub mavlink: MavlinkOptions,
 }
 
 /// The default line limit, bytes (a JSON line may be a full payload).
@@ -414,6 +457,8 @@ impl Default for ReadOptions {
             max_line_bytes: DEFAULT_MAX_LINE_BYTES,
             backwards_tolerance_s: 0.5,
             assumed_date: Some(CivilDate::UNIX_EPOCH),
+            clock: Clock::Log,
+            mavlink: MavlinkOptions::default(),
         }
     }
 }
@@ -436,10 +481,109 @@ pub trait Decoder {
     fn state_bytes(&self) -> usize {
         0
     }
+
+    /// The time the lines that follow were received, seconds since the
+    /// epoch: live inputs tell it before each line (or datagram), and the
+    /// decoders of formats without time of their own stamp records with it
+    /// under [`Clock::Receiver`]. Ignored by the others.
+    fn set_receive_time(&mut self, _time_s: f64) {}
+
+    /// True when the records of the line just decoded were stamped with the
+    /// receive time rather than a time of the source's.
+    fn receiver_stamped(&self) -> bool {
+        false
+    }
+}
+
+/// What a format's decoder does with one line, apart from counting it: the
+/// part that differs between formats. [`Counted`] adds the counts and makes
+/// it a [`Decoder`].
+pub trait LineDecoder {
+    /// Decodes one line, emitting records (and rejections that do not end
+    /// the line); `Err` refuses the line.
+    fn line(&mut self, line: &[u8], emit: &mut Emit<'_>) -> Result<(), RejectReason>;
+
+    /// Bytes of state held beyond the fixed size.
+    fn state_bytes(&self) -> usize {
+        0
+    }
+
+    /// See [`Decoder::set_receive_time`].
+    fn set_receive_time(&mut self, _time_s: f64) {}
+
+    /// See [`Decoder::receiver_stamped`].
+    fn receiver_stamped(&self) -> bool {
+        false
+    }
+
+    /// A new line begins (forget what was said of the previous one).
+    fn begin_line(&mut self) {}
+}
+
+/// A format's [`LineDecoder`] with its [`ReadStats`]: the decoders of
+/// candump, Yacht Devices RAW, Actisense, gpsd and MAVLink.
+#[derive(Debug, Clone)]
+pub struct Counted<S> {
+    state: S,
+    stats: ReadStats,
+}
+
+impl<S: LineDecoder> Counted<S> {
+    fn from_state(state: S) -> Self {
+        Self {
+            state,
+            stats: ReadStats::default(),
+        }
+    }
+
+    /// Counts a line and decodes it with `body`, counting its refusal.
+    fn decode_with(
+        &mut self,
+        line_no: u64,
+        out: &mut Vec<Item>,
+        body: impl FnOnce(&mut S, &mut Emit<'_>) -> Result<(), RejectReason>,
+    ) {
+        self.stats.lines += 1;
+        self.state.begin_line();
+        let mut emit = Emit {
+            out,
+            stats: &mut self.stats,
+            line: line_no,
+        };
+        if let Err(reason) = body(&mut self.state, &mut emit) {
+            emit.reject(reason);
+        }
+    }
+}
+
+impl<S: LineDecoder> Decoder for Counted<S> {
+    fn decode_line(&mut self, line: &[u8], line_no: u64, out: &mut Vec<Item>) {
+        self.decode_with(line_no, out, |state, emit| state.line(line, emit));
+    }
+
+    fn reject_line(&mut self, line_no: u64, reason: RejectReason, out: &mut Vec<Item>) {
+        reject_whole_line(&mut self.stats, line_no, reason, out);
+    }
+
+    fn stats(&self) -> &ReadStats {
+        &self.stats
+    }
+
+    fn state_bytes(&self) -> usize {
+        self.state.state_bytes()
+    }
+
+    fn set_receive_time(&mut self, time_s: f64) {
+        self.state.set_receive_time(time_s);
+    }
+
+    fn receiver_stamped(&self) -> bool {
+        self.state.receiver_stamped()
+    }
 }
 
 /// Appends records and rejections to an output while counting them.
-pub(crate) struct Emit<'a> {
+pub struct Emit<'a> {
     pub(crate) out: &'a mut Vec<Item>,
     pub(crate) stats: &'a mut ReadStats,
     pub(crate) line: u64,
@@ -517,18 +661,22 @@ enum LineEvent {
     Line,
     /// A line longer than the limit was skipped.
     TooLong,
+    /// Bytes of a binary log that are not a record were skipped.
+    Skipped(RejectReason),
     /// Reading failed.
     Io(io::ErrorKind),
     /// End of input.
     Eof,
 }
 
-/// Reads bounded lines from a `BufRead`.
+/// Reads bounded lines from a `BufRead`, or the records of a `.tlog`.
 struct Lines<R> {
     inner: R,
     buf: Vec<u8>,
     max_line_bytes: usize,
     line_no: u64,
+    /// Set for a `.tlog`: its records instead of lines.
+    framer: Option<mavlink::MavlinkFramer>,
 }
 
 impl<R: BufRead> Lines<R> {
@@ -538,6 +686,52 @@ impl<R: BufRead> Lines<R> {
             buf: Vec::new(),
             max_line_bytes,
             line_no: 0,
+            framer: None,
+        }
+    }
+
+    /// Reads the next `.tlog` record (stamp + frame) into `self.buf`.
+    fn next_record(&mut self) -> LineEvent {
+        let Some(framer) = self.framer.as_mut() else {
+            return LineEvent::Eof;
+        };
+        loop {
+            match framer.next_event() {
+                Some(mavlink::FrameEvent::Frame(record)) => {
+                    self.buf.clear();
+                    self.buf.extend_from_slice(record);
+                    self.line_no += 1;
+                    return LineEvent::Line;
+                }
+                Some(mavlink::FrameEvent::Skipped { reason, .. }) => {
+                    self.line_no += 1;
+                    return LineEvent::Skipped(reason);
+                }
+                None => {}
+            }
+            let available = match self.inner.fill_buf() {
+                Ok(bytes) => bytes,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                Err(e) => return LineEvent::Io(e.kind()),
+            };
+            if available.is_empty() {
+                self.line_no += 1;
+                return match framer.drain_event() {
+                    Some(mavlink::FrameEvent::Frame(record)) => {
+                        self.buf.clear();
+                        self.buf.extend_from_slice(record);
+                        LineEvent::Line
+                    }
+                    Some(mavlink::FrameEvent::Skipped { reason, .. }) => LineEvent::Skipped(reason),
+                    None => {
+                        self.line_no -= 1;
+                        LineEvent::Eof
+                    }
+                };
+            }
+            let n = available.len();
+            framer.push(available);
+            self.inner.consume(n);
         }
     }
 
@@ -545,6 +739,9 @@ impl<R: BufRead> Lines<R> {
     /// than `max_line_bytes` of a line: the rest of a longer one is consumed
     /// and dropped.
     fn next_line(&mut self) -> LineEvent {
+        if self.framer.is_some() {
+            return self.next_record();
+        }
         self.buf.clear();
         let mut too_long = false;
         let mut got_any = false;
@@ -590,6 +787,7 @@ impl<R: BufRead> Lines<R> {
 enum Prefetched {
     Line(Vec<u8>),
     TooLong,
+    Skipped(RejectReason),
 }
 
 /// Drives a [`Decoder`] over a `BufRead`: an iterator of [`Item`]s in
@@ -636,7 +834,7 @@ impl<R: BufRead, D: Decoder> Reader<R, D> {
                 .iter()
                 .map(|(_, p)| match p {
                     Prefetched::Line(l) => l.capacity(),
-                    Prefetched::TooLong => 0,
+                    Prefetched::TooLong | Prefetched::Skipped(_) => 0,
                 })
                 .sum::<usize>()
             + self.decoder.state_bytes()
@@ -665,6 +863,9 @@ impl<R: BufRead, D: Decoder> Iterator for Reader<R, D> {
                         RejectReason::LineTooLong { limit },
                         &mut self.pending,
                     ),
+                    Prefetched::Skipped(reason) => {
+                        self.decoder.reject_line(line_no, reason, &mut self.pending)
+                    }
                 }
             } else {
                 match self.lines.next_line() {
@@ -678,6 +879,10 @@ impl<R: BufRead, D: Decoder> Iterator for Reader<R, D> {
                         RejectReason::LineTooLong { limit },
                         &mut self.pending,
                     ),
+                    LineEvent::Skipped(reason) => {
+                        self.decoder
+                            .reject_line(self.lines.line_no, reason, &mut self.pending)
+                    }
                     LineEvent::Io(kind) => {
                         self.done = true;
                         self.decoder.reject_line(
@@ -703,21 +908,84 @@ pub enum LogFormat {
     N2k,
     /// The project's JSON lines.
     JsonLines,
+    /// NMEA 2000 CAN frames as Linux `candump` prints or logs them.
+    Candump,
+    /// NMEA 2000 CAN frames in Yacht Devices RAW.
+    YdRaw,
+    /// NMEA 2000 messages in Actisense N2K ASCII.
+    ActisenseAscii,
+    /// gpsd's JSON reports.
+    GpsdJson,
+    /// A MAVLink telemetry log (`.tlog`).
+    MavlinkTlog,
+}
+
+impl LogFormat {
+    /// A short snake_case name, for reports: `nmea0183`, `n2k`,
+    /// `json_lines`, `candump`, `ydraw`, `actisense_ascii`, `gpsd_json`,
+    /// `mavlink_tlog`.
+    pub fn name(self) -> &'static str {
+        match self {
+            LogFormat::Nmea0183 => "nmea0183",
+            LogFormat::N2k => "n2k",
+            LogFormat::JsonLines => "json_lines",
+            LogFormat::Candump => "candump",
+            LogFormat::YdRaw => "ydraw",
+            LogFormat::ActisenseAscii => "actisense_ascii",
+            LogFormat::GpsdJson => "gpsd_json",
+            LogFormat::MavlinkTlog => "mavlink_tlog",
+        }
+    }
+
+    /// What it is, for people.
+    pub fn description(self) -> &'static str {
+        match self {
+            LogFormat::Nmea0183 => "NMEA 0183",
+            LogFormat::N2k => "canboat NMEA 2000",
+            LogFormat::JsonLines => "JSON lines",
+            LogFormat::Candump => "NMEA 2000 candump",
+            LogFormat::YdRaw => "NMEA 2000 Yacht Devices RAW",
+            LogFormat::ActisenseAscii => "NMEA 2000 Actisense N2K ASCII",
+            LogFormat::GpsdJson => "gpsd JSON",
+            LogFormat::MavlinkTlog => "MAVLink telemetry log",
+        }
+    }
+
+    /// Every format.
+    pub const ALL: [LogFormat; 8] = [
+        LogFormat::Nmea0183,
+        LogFormat::N2k,
+        LogFormat::JsonLines,
+        LogFormat::Candump,
+        LogFormat::YdRaw,
+        LogFormat::ActisenseAscii,
+        LogFormat::GpsdJson,
+        LogFormat::MavlinkTlog,
+    ];
 }
 
 /// How many non-blank lines [`LogReader::open`] looks at to pick a format.
 pub const DETECT_LINES: usize = 16;
 
 /// The format of one line, if it clearly has one. Blank lines and `#`
-/// comments other than canboat's `# format=` header have none.
+/// comments other than canboat's `# format=` header have none. (A `.tlog`
+/// is binary and found by its first bytes, not by a line.)
 pub fn detect_line_format(line: &[u8]) -> Option<LogFormat> {
     let line = trim_line(line);
     let line = line.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(line);
     match line.first()? {
         b'$' | b'!' => Some(LogFormat::Nmea0183),
+        b'{' if gpsd::looks_like_gpsd(line) => Some(LogFormat::GpsdJson),
         b'{' => Some(LogFormat::JsonLines),
         b'#' => line.starts_with(b"# format=").then_some(LogFormat::N2k),
-        b'0'..=b'9' => n2k::looks_like_n2k(line).then_some(LogFormat::N2k),
+        b'0'..=b'9' if n2k::looks_like_n2k(line) => Some(LogFormat::N2k),
+        b'0'..=b'9' => n2k_raw::looks_like(RawFormat::YdRaw, line).then_some(LogFormat::YdRaw),
+        b'A' if n2k_raw::looks_like(RawFormat::ActisenseAscii, line) => {
+            Some(LogFormat::ActisenseAscii)
+        }
+        b'(' | b'a'..=b'z' | b'A'..=b'Z' | b' ' => {
+            n2k_raw::looks_like(RawFormat::Candump, line).then_some(LogFormat::Candump)
+        }
         _ => None,
     }
 }
@@ -751,6 +1019,12 @@ pub enum AnyDecoder {
     N2k(N2kDecoder),
     /// JSON lines.
     JsonLines(JsonlDecoder),
+    /// candump, Yacht Devices RAW or Actisense N2K ASCII.
+    N2kRaw(N2kRawDecoder),
+    /// gpsd JSON.
+    Gpsd(GpsdDecoder),
+    /// MAVLink `.tlog` records.
+    Mavlink(MavlinkDecoder),
 }
 
 impl AnyDecoder {
@@ -760,6 +1034,15 @@ impl AnyDecoder {
             LogFormat::Nmea0183 => AnyDecoder::Nmea0183(NmeaDecoder::new(options)),
             LogFormat::N2k => AnyDecoder::N2k(N2kDecoder::new(options)),
             LogFormat::JsonLines => AnyDecoder::JsonLines(JsonlDecoder::new(options)),
+            LogFormat::Candump => {
+                AnyDecoder::N2kRaw(N2kRawDecoder::new(RawFormat::Candump, options))
+            }
+            LogFormat::YdRaw => AnyDecoder::N2kRaw(N2kRawDecoder::new(RawFormat::YdRaw, options)),
+            LogFormat::ActisenseAscii => {
+                AnyDecoder::N2kRaw(N2kRawDecoder::new(RawFormat::ActisenseAscii, options))
+            }
+            LogFormat::GpsdJson => AnyDecoder::Gpsd(GpsdDecoder::new(options)),
+            LogFormat::MavlinkTlog => AnyDecoder::Mavlink(MavlinkDecoder::new(options, true)),
         }
     }
 
@@ -769,6 +1052,13 @@ impl AnyDecoder {
             AnyDecoder::Nmea0183(_) => LogFormat::Nmea0183,
             AnyDecoder::N2k(_) => LogFormat::N2k,
             AnyDecoder::JsonLines(_) => LogFormat::JsonLines,
+            AnyDecoder::N2kRaw(d) => match d.format() {
+                RawFormat::Candump => LogFormat::Candump,
+                RawFormat::YdRaw => LogFormat::YdRaw,
+                RawFormat::ActisenseAscii => LogFormat::ActisenseAscii,
+            },
+            AnyDecoder::Gpsd(_) => LogFormat::GpsdJson,
+            AnyDecoder::Mavlink(_) => LogFormat::MavlinkTlog,
         }
     }
 
@@ -777,6 +1067,9 @@ impl AnyDecoder {
             AnyDecoder::Nmea0183(d) => d,
             AnyDecoder::N2k(d) => d,
             AnyDecoder::JsonLines(d) => d,
+            AnyDecoder::N2kRaw(d) => d,
+            AnyDecoder::Gpsd(d) => d,
+            AnyDecoder::Mavlink(d) => d,
         }
     }
 
@@ -785,6 +1078,9 @@ impl AnyDecoder {
             AnyDecoder::Nmea0183(d) => d,
             AnyDecoder::N2k(d) => d,
             AnyDecoder::JsonLines(d) => d,
+            AnyDecoder::N2kRaw(d) => d,
+            AnyDecoder::Gpsd(d) => d,
+            AnyDecoder::Mavlink(d) => d,
         }
     }
 }
@@ -805,9 +1101,17 @@ impl Decoder for AnyDecoder {
     fn state_bytes(&self) -> usize {
         self.inner_ref().state_bytes()
     }
+
+    fn set_receive_time(&mut self, time_s: f64) {
+        self.inner().set_receive_time(time_s);
+    }
+
+    fn receiver_stamped(&self) -> bool {
+        self.inner_ref().receiver_stamped()
+    }
 }
 
-/// A reader of a log in any of the three formats, picked by content.
+/// A reader of a log in any of the formats, picked by content.
 pub type LogReader<R> = Reader<R, AnyDecoder>;
 
 impl<R: BufRead> Reader<R, AnyDecoder> {
@@ -815,6 +1119,16 @@ impl<R: BufRead> Reader<R, AnyDecoder> {
     /// format, then reads them again as records.
     pub fn open(input: R, options: ReadOptions) -> Result<Self, OpenError> {
         let mut lines = Lines::new(input, options.max_line_bytes);
+        if lines.starts_like_tlog()? {
+            lines.framer = Some(mavlink::MavlinkFramer::new(true));
+            return Ok(Self {
+                lines,
+                decoder: AnyDecoder::new(LogFormat::MavlinkTlog, options),
+                pending: Vec::new(),
+                prefetched: VecDeque::new(),
+                done: false,
+            });
+        }
         let mut prefetched = VecDeque::new();
         let mut non_blank = 0;
         let mut format = None;
@@ -833,6 +1147,9 @@ impl<R: BufRead> Reader<R, AnyDecoder> {
                 LineEvent::TooLong => {
                     non_blank += 1;
                     prefetched.push_back((lines.line_no, Prefetched::TooLong));
+                }
+                LineEvent::Skipped(reason) => {
+                    prefetched.push_back((lines.line_no, Prefetched::Skipped(reason)));
                 }
                 LineEvent::Io(kind) => return Err(OpenError::Io(kind)),
                 LineEvent::Eof => break,
@@ -855,6 +1172,20 @@ impl<R: BufRead> Reader<R, AnyDecoder> {
     /// The format picked.
     pub fn format(&self) -> LogFormat {
         self.decoder.format()
+    }
+}
+
+impl<R: BufRead> Lines<R> {
+    /// Looks at the first bytes (without consuming them): a `.tlog` stamp
+    /// and a MAVLink start byte.
+    fn starts_like_tlog(&mut self) -> Result<bool, OpenError> {
+        loop {
+            match self.inner.fill_buf() {
+                Ok(bytes) => return Ok(mavlink::looks_like_tlog(bytes)),
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                Err(e) => return Err(OpenError::Io(e.kind())),
+            }
+        }
     }
 }
 

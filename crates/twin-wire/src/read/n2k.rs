@@ -3,10 +3,11 @@
 //! A line is `time,priority,PGN,source,destination,length,b0,b1,...` with
 //! the time in ISO 8601 / RFC 3339 and the data bytes in hex. A first line
 //! `# format=FAST` says multi-frame (fast-packet) messages are already joined;
-//! without it, a fast-packet PGN the reader decodes (129029, 130842) that
-//! arrives as 8-byte frames is reassembled here (per source and PGN, at most
-//! [`MAX_FAST_SLOTS`] in progress, so memory stays bounded). A message of
-//! more than 8 bytes is always taken as already joined.
+//! without it, a fast-packet PGN the reader decodes (129029, 130577, 130842)
+//! that arrives as 8-byte frames is reassembled by
+//! [`FastPackets`](super::fast_packet::FastPackets), the same assembler the
+//! candump and Yacht Devices RAW readers use. A message of more than 8 bytes
+//! is always taken as already joined.
 //!
 //! Fields are little-endian bit fields (layouts in `N2K.md`, facts from the
 //! canboat PGN database). For fields of 8 bits or more, an unsigned value with
@@ -32,6 +33,8 @@
 use twin_core::geodesy::wrap_two_pi;
 use twin_core::sample::{RADPS_PER_RPM, Side};
 
+use super::fast_packet::{FastFrame, FastPackets, is_fast};
+use super::n2k_raw::CanId;
 use super::{
     Decoder, Emit, Item, Monotonic, ReadOptions, ReadStats, RejectReason, reject_whole_line,
     trim_line,
@@ -42,15 +45,6 @@ use crate::time::parse_rfc3339;
 /// The largest data length accepted, bytes (an ISO 11783 transport-protocol
 /// message; fast packets are at most 223).
 pub const MAX_DATA_BYTES: usize = 1785;
-
-/// The most fast-packet reassemblies in progress at once.
-pub const MAX_FAST_SLOTS: usize = 32;
-
-/// The largest fast-packet payload, bytes (6 + 31 x 7).
-const MAX_FAST_BYTES: usize = 223;
-
-/// The fast-packet PGNs this reader decodes.
-const FAST_PGNS: [u32; 2] = [129_029, 130_842];
 
 /// Furuno's NMEA 2000 manufacturer code.
 pub const FURUNO_MANUFACTURER_CODE: u64 = 1855;
@@ -70,17 +64,7 @@ struct State {
     monotonic: Monotonic,
     /// The data bytes of the current line (reused).
     data: Vec<u8>,
-    fast: Vec<FastSlot>,
-}
-
-#[derive(Debug, Clone)]
-struct FastSlot {
-    source: u8,
-    pgn: u32,
-    sequence: u8,
-    next_frame: u8,
-    expected: usize,
-    data: Vec<u8>,
+    fast: FastPackets,
 }
 
 impl N2kDecoder {
@@ -116,13 +100,7 @@ impl Decoder for N2kDecoder {
     }
 
     fn state_bytes(&self) -> usize {
-        self.state.data.capacity()
-            + self
-                .state
-                .fast
-                .iter()
-                .map(|s| s.data.capacity() + std::mem::size_of::<FastSlot>())
-                .sum::<usize>()
+        self.state.data.capacity() + self.state.fast.state_bytes()
     }
 }
 
@@ -274,6 +252,77 @@ fn lat_lon(lat: Option<f64>, lon: Option<f64>) -> Result<Option<(f64, f64)>, Rej
     Ok(Some((lat, lon)))
 }
 
+/// The header of a canboat text line: its time and the message's id.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MessageHeader {
+    /// The line's time, seconds since the epoch.
+    pub time_s: f64,
+    /// Priority, PGN, source and destination.
+    pub id: CanId,
+}
+
+/// Parses one canboat text line (not a comment) into its header, putting
+/// its data bytes in `data`: shared by the decoder and by whatever carries
+/// the text into another layout.
+pub fn parse_message(line: &[u8], data: &mut Vec<u8>) -> Result<MessageHeader, RejectReason> {
+    let text = std::str::from_utf8(trim_line(line)).map_err(|_| RejectReason::NotText)?;
+    let mut parts = text.split(',');
+    let time = parts.next().unwrap_or("");
+    if !time.as_bytes().first().is_some_and(u8::is_ascii_digit) {
+        return Err(RejectReason::UnknownFormat);
+    }
+    let time_s = parse_rfc3339(time).map_err(RejectReason::BadTime)?;
+    let mut header = [0u32; 5];
+    const NAMES: [&str; 5] = ["priority", "PGN", "source", "destination", "length"];
+    for (value, what) in header.iter_mut().zip(NAMES) {
+        let field = parts.next().ok_or(RejectReason::Malformed { what })?;
+        if field.is_empty() || field.len() > 7 || !field.bytes().all(|b| b.is_ascii_digit()) {
+            return Err(RejectReason::Malformed { what });
+        }
+        *value = field
+            .parse()
+            .map_err(|_| RejectReason::Malformed { what })?;
+    }
+    let [priority, pgn, source, destination, length] = header;
+    if priority > 7 {
+        return Err(RejectReason::Malformed { what: "priority" });
+    }
+    let source = u8::try_from(source).map_err(|_| RejectReason::Malformed { what: "source" })?;
+    let destination = u8::try_from(destination).map_err(|_| RejectReason::Malformed {
+        what: "destination",
+    })?;
+    let length = length as usize;
+    if length > MAX_DATA_BYTES {
+        return Err(RejectReason::Malformed { what: "length" });
+    }
+    data.clear();
+    for byte in parts {
+        if byte.len() != 2 || data.len() == length {
+            return Err(RejectReason::Malformed { what: "data bytes" });
+        }
+        let b = u8::from_str_radix(byte, 16)
+            .map_err(|_| RejectReason::Malformed { what: "data bytes" })?;
+        if !byte.bytes().all(|c| c.is_ascii_hexdigit()) {
+            return Err(RejectReason::Malformed { what: "data bytes" });
+        }
+        data.push(b);
+    }
+    if data.len() != length {
+        return Err(RejectReason::Malformed {
+            what: "data length",
+        });
+    }
+    Ok(MessageHeader {
+        time_s,
+        id: CanId {
+            priority: priority as u8,
+            pgn,
+            source,
+            destination,
+        },
+    })
+}
+
 impl State {
     fn line(
         &mut self,
@@ -293,127 +342,49 @@ impl State {
             emit.stats.blank += 1;
             return Ok(());
         }
-        let text = std::str::from_utf8(line).map_err(|_| RejectReason::NotText)?;
-        let mut parts = text.split(',');
-        let time = parts.next().unwrap_or("");
-        if !time.as_bytes().first().is_some_and(u8::is_ascii_digit) {
-            return Err(RejectReason::UnknownFormat);
-        }
-        let time_s = parse_rfc3339(time).map_err(RejectReason::BadTime)?;
-        let mut header = [0u32; 5];
-        const NAMES: [&str; 5] = ["priority", "PGN", "source", "destination", "length"];
-        for (value, what) in header.iter_mut().zip(NAMES) {
-            let field = parts.next().ok_or(RejectReason::Malformed { what })?;
-            if field.is_empty() || field.len() > 7 || !field.bytes().all(|b| b.is_ascii_digit()) {
-                return Err(RejectReason::Malformed { what });
-            }
-            *value = field
-                .parse()
-                .map_err(|_| RejectReason::Malformed { what })?;
-        }
-        let [priority, pgn, source, destination, length] = header;
-        if priority > 7 {
-            return Err(RejectReason::Malformed { what: "priority" });
-        }
-        let source =
-            u8::try_from(source).map_err(|_| RejectReason::Malformed { what: "source" })?;
-        if destination > 255 {
-            return Err(RejectReason::Malformed {
-                what: "destination",
-            });
-        }
-        let length = length as usize;
-        if length > MAX_DATA_BYTES {
-            return Err(RejectReason::Malformed { what: "length" });
-        }
-        self.data.clear();
-        for byte in parts {
-            if byte.len() != 2 || self.data.len() == length {
-                return Err(RejectReason::Malformed { what: "data bytes" });
-            }
-            let b = u8::from_str_radix(byte, 16)
-                .map_err(|_| RejectReason::Malformed { what: "data bytes" })?;
-            if !byte.bytes().all(|c| c.is_ascii_hexdigit()) {
-                return Err(RejectReason::Malformed { what: "data bytes" });
-            }
-            self.data.push(b);
-        }
-        if self.data.len() != length {
-            return Err(RejectReason::Malformed {
-                what: "data length",
-            });
-        }
+        let header = parse_message(line, &mut self.data)?;
+        let time_s = header.time_s;
+        let (pgn, source) = (header.id.pgn, header.id.source);
         self.monotonic
             .check(time_s, options.backwards_tolerance_s)?;
-        let source = Source::N2k(source);
-        if FAST_PGNS.contains(&pgn) && !self.joined && length <= 8 {
-            let Some(data) = self.fast_frame(source, pgn) else {
-                // A frame of a message still being joined: nothing yet.
-                return Ok(());
-            };
-            return decode_pgn(pgn, &data, time_s, source, emit);
-        }
         let data = std::mem::take(&mut self.data);
-        let result = decode_pgn(pgn, &data, time_s, source, emit);
+        let result = decode_message_or_frame(
+            &mut self.fast,
+            !self.joined,
+            pgn,
+            source,
+            &data,
+            time_s,
+            emit,
+        );
         self.data = data;
         result
     }
+}
 
-    /// Adds the frame in `self.data` to its reassembly; returns the message
-    /// when complete. Out-of-order frames drop the partial message.
-    fn fast_frame(&mut self, source: Source, pgn: u32) -> Option<Vec<u8>> {
-        let Source::N2k(address) = source else {
-            return None;
+/// Decodes what one line carries: a whole message, or, when the log is
+/// frame by frame (`frames`), an 8-byte frame of a fast-packet PGN the
+/// readers decode, joined with [`FastPackets`] and decoded once complete.
+/// Shared by every NMEA 2000 reader.
+pub(crate) fn decode_message_or_frame(
+    fast: &mut FastPackets,
+    frames: bool,
+    pgn: u32,
+    address: u8,
+    data: &[u8],
+    time_s: f64,
+    emit: &mut Emit<'_>,
+) -> Result<(), RejectReason> {
+    let source = Source::N2k(address);
+    if frames && is_fast(pgn) && data.len() <= 8 {
+        return match fast.push(address, pgn, data) {
+            FastFrame::Complete(message) => decode_pgn(pgn, &message, time_s, source, emit),
+            // A frame of a message still being joined: nothing yet.
+            FastFrame::Pending => Ok(()),
+            FastFrame::Lost(reason) => Err(reason),
         };
-        let frame = &self.data;
-        let first = *frame.first()?;
-        let sequence = first >> 5;
-        let counter = first & 0x1f;
-        let slot_index = self
-            .fast
-            .iter()
-            .position(|s| s.source == address && s.pgn == pgn);
-        if counter == 0 {
-            let expected = usize::from(*frame.get(1)?);
-            if expected > MAX_FAST_BYTES {
-                return None;
-            }
-            let mut data = Vec::with_capacity(expected);
-            data.extend_from_slice(frame.get(2..).unwrap_or(&[]));
-            let slot = FastSlot {
-                source: address,
-                pgn,
-                sequence,
-                next_frame: 1,
-                expected,
-                data,
-            };
-            match slot_index {
-                Some(i) => self.fast[i] = slot,
-                None if self.fast.len() < MAX_FAST_SLOTS => self.fast.push(slot),
-                None => self.fast[0] = slot,
-            }
-        } else {
-            let i = slot_index?;
-            let slot = &mut self.fast[i];
-            if slot.sequence != sequence || slot.next_frame != counter {
-                self.fast.swap_remove(i);
-                return None;
-            }
-            slot.data.extend_from_slice(frame.get(1..).unwrap_or(&[]));
-            slot.next_frame = slot.next_frame.saturating_add(1);
-        }
-        let i = self
-            .fast
-            .iter()
-            .position(|s| s.source == address && s.pgn == pgn)?;
-        if self.fast[i].data.len() >= self.fast[i].expected {
-            let mut slot = self.fast.swap_remove(i);
-            slot.data.truncate(slot.expected);
-            return Some(slot.data);
-        }
-        None
     }
+    decode_pgn(pgn, data, time_s, source, emit)
 }
 
 /// PGN 127250, vessel heading: true, or magnetic corrected by deviation and
@@ -621,7 +592,7 @@ fn decode_pgn(
 mod tests {
     use super::*;
     use crate::measurement::Record;
-    use crate::read::RejectKind;
+    use crate::read::{RejectKind, Rejection};
 
     fn decode(lines: &[&str]) -> (Vec<Item>, ReadStats) {
         let mut d = N2kDecoder::new(ReadOptions::default());
@@ -970,11 +941,18 @@ mod tests {
         ));
         assert_eq!(items, vec![Ok(whole)]);
         assert_eq!(stats.total_rejected(), 0);
-        // Missing frame 2: the partial message is dropped, nothing decoded.
+        // Missing frame 2: the partial message is lost, nothing decoded, and
+        // every frame that could not be used says why (frame 3 out of order,
+        // 4 to 6 without their first frame).
         let mut gap = refs.clone();
         gap.remove(2);
-        let (items, _) = decode(&gap);
-        assert!(items.is_empty());
+        let (items, stats) = decode(&gap);
+        assert_eq!(items.len(), 4, "{items:?}");
+        assert!(items.iter().all(|i| matches!(
+            i,
+            Err(Rejection { reason: RejectReason::Malformed { what }, .. }) if what.starts_with("fast packet")
+        )));
+        assert_eq!(stats.rejected(RejectKind::Malformed), 4);
         // With the FAST header, an 8-byte 129029 is simply too short.
         let (items, _) = decode(&["# format=FAST", refs[0]]);
         assert_eq!(

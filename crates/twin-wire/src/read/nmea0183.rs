@@ -44,13 +44,13 @@
 use twin_core::geodesy::{MPS_PER_KNOT, wrap_two_pi};
 use twin_core::sample::{RADPS_PER_RPM, Side};
 
+use super::clock::{DayClock, Stamp};
 use super::{
-    Decoder, Emit, Item, Monotonic, ReadOptions, ReadStats, RejectReason, reject_whole_line,
-    trim_line,
+    Decoder, Emit, Item, ReadOptions, ReadStats, RejectReason, reject_whole_line, trim_line,
 };
 use crate::measurement::{FixMethod, MAX_SPEED_MPS, Measurement, Source, Talker};
 use crate::messages::MAX_ABS_YAW_RATE_RADPS;
-use crate::time::{SECONDS_PER_DAY, parse_ddmmyy, parse_hhmmss};
+use crate::time::{parse_ddmmyy, parse_hhmmss};
 
 /// The most comma-separated fields a sentence may have (standard sentences
 /// have at most ~20; GSV and proprietary ones a few more).
@@ -71,12 +71,8 @@ pub struct NmeaDecoder {
 
 #[derive(Debug, Clone, Default)]
 struct State {
-    /// The current date, days since the epoch, and whether it was assumed.
-    date: Option<(i64, bool)>,
-    /// Time of the latest accepted timed sentence, and whether its date was
-    /// assumed.
-    latest: Option<(f64, bool)>,
-    monotonic: Monotonic,
+    /// The date and the latest timed sentence's time.
+    clock: DayClock,
     /// Latest magnetic variation seen (RMC, HDG), rad, east positive.
     variation_rad: Option<f64>,
 }
@@ -92,14 +88,6 @@ impl<'a> Fields<'a> {
     fn get(&self, i: usize) -> &'a str {
         if i < self.len { self.fields[i] } else { "" }
     }
-}
-
-/// A time resolved for a sentence: seconds since the epoch, and whether the
-/// date was assumed.
-#[derive(Clone, Copy)]
-struct Stamp {
-    time_s: f64,
-    undated: bool,
 }
 
 impl NmeaDecoder {
@@ -386,49 +374,18 @@ impl State {
         tod_s: f64,
         options: &ReadOptions,
     ) -> Result<Stamp, RejectReason> {
-        let time_s = (days * SECONDS_PER_DAY) as f64 + tod_s;
-        self.monotonic
-            .check(time_s, options.backwards_tolerance_s)?;
-        self.date = Some((days, false));
-        self.latest = Some((time_s, false));
-        Ok(Stamp {
-            time_s,
-            undated: false,
-        })
+        self.clock.dated(days, tod_s, options.backwards_tolerance_s)
     }
 
     /// The time of a time-of-day-only sentence (see the module doc).
     fn time_of_day(&mut self, tod_s: f64, options: &ReadOptions) -> Result<Stamp, RejectReason> {
-        let (days, assumed) = match (self.date, options.assumed_date) {
-            (Some(date), _) => date,
-            (None, Some(assumed)) => (assumed.days_since_epoch(), true),
-            (None, None) => return Err(RejectReason::NoDate),
-        };
-        let at = |d: i64| (d * SECONDS_PER_DAY) as f64 + tod_s;
-        let day = match self.latest {
-            Some((latest, _)) => [days - 1, days, days + 1]
-                .into_iter()
-                .min_by(|a, b| (at(*a) - latest).abs().total_cmp(&(at(*b) - latest).abs()))
-                .unwrap_or(days),
-            None => days,
-        };
-        let time_s = at(day);
-        self.monotonic
-            .check(time_s, options.backwards_tolerance_s)?;
-        // A day before the current date is a late sentence: the date stays.
-        self.date = Some((day.max(days), assumed));
-        self.latest = Some((time_s, assumed));
-        Ok(Stamp {
-            time_s,
-            undated: assumed,
-        })
+        self.clock
+            .time_of_day(tod_s, options.assumed_date, options.backwards_tolerance_s)
     }
 
     /// The time of a sentence without time: the latest timed sentence's.
     fn untimed(&self) -> Result<Stamp, RejectReason> {
-        self.latest
-            .map(|(time_s, undated)| Stamp { time_s, undated })
-            .ok_or(RejectReason::NoTime)
+        self.clock.untimed()
     }
 
     fn record(emit: &mut Emit<'_>, stamp: Stamp, source: Source, measurement: Measurement) {

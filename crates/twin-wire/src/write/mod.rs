@@ -1,10 +1,14 @@
 //! Log and sentence writers: NMEA 0183 sentences (RMC, GGA, VTG, HDT, RPM,
-//! ZDA) for the simulator, and the project's JSON lines for the replay tool.
+//! ZDA) for the simulator, the project's JSON lines for the replay tool,
+//! NMEA 2000 in the raw gateway layouts and MAVLink frames and `.tlog`
+//! records for tests and benchmarks.
 //!
 //! Everything written reads back through [`crate::read`] to the same values
 //! within the written precision (tests check the round trip).
 
 pub mod jsonl;
+pub mod mavlink;
+pub mod n2k_raw;
 pub mod nmea0183;
 
 pub use jsonl::JsonlWriter;
