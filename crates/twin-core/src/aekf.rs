@@ -317,7 +317,11 @@ where
                 "forgetting_time_constant_s must be positive",
             ));
         }
-        if config.fault_memory_factor.iter().any(|f| f.is_nan() || *f <= 0.0) {
+        if config
+            .fault_memory_factor
+            .iter()
+            .any(|f| f.is_nan() || *f <= 0.0)
+        {
             return Err(AekfError::InvalidConfig(
                 "fault_memory_factor must be positive",
             ));
