@@ -235,9 +235,16 @@ pub struct FaultReport {
 
 impl FaultReport {
     /// The ratio of the port to the starboard propeller's effectiveness,
-    /// `(1 - loss_port) / (1 - loss_stb)`, and its standard deviation from the
-    /// covariance (first order). What a straight run can tell.
+    /// `(1 - loss_port) / (1 - loss_stb)`, and its standard deviation: what
+    /// the yaw balance tells even on a straight run, and what the decisions
+    /// judge when the losses' common part is unknown. From the port
+    /// propeller's relative loss where the extended twin has one, else from
+    /// the losses and their covariance (first order).
     pub fn effectiveness_ratio(&self) -> (f64, f64) {
+        let port = &self.thrusters[0];
+        if port.relative_loss.is_finite() && port.relative_sigma.is_finite() {
+            return (1.0 - port.relative_loss, port.relative_sigma);
+        }
         let (lp, ls) = (self.thrusters[0].loss, self.thrusters[1].loss);
         let ratio = (1.0 - lp) / (1.0 - ls);
         let grad = [-1.0 / (1.0 - ls), (1.0 - lp) / (1.0 - ls).powi(2)];

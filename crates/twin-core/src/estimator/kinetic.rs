@@ -207,7 +207,9 @@ const HELD_VARIANCE: f64 = 1e-12;
 /// The losses as a controller reads them off an estimate.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LossReading {
-    /// Loss of each propeller `[port, starboard]`.
+    /// Loss of each propeller `[port, starboard]`: the filter's estimate
+    /// where it is excited, else the smallest losses the relative loss
+    /// allows, where that is excited ([`KineticBase::losses`]).
     pub loss: [f64; 2],
     /// Its standard deviation, with every other fault (the other loss, the
     /// damping errors) unknown: the marginal of the filter's covariance.
@@ -224,10 +226,9 @@ pub struct LossReading {
     /// Whether each loss on its own is excited: the data pin it down, with
     /// the other faults unknown, to the configured standard deviation.
     pub excited: [bool; 2],
-    /// Whether each relative loss is excited: its standard deviation is
-    /// within the configured bar. The side that lost thrust has the
-    /// narrower one (its relative loss divides by the healthy side's
-    /// effectiveness), so a loss is told before the other side's gain is.
+    /// Whether the relative losses are excited: the narrower of their
+    /// standard deviations (the weaker propeller's) is within the
+    /// configured bar. The same for both sides.
     pub relative_excited: [bool; 2],
 }
 
@@ -513,6 +514,27 @@ impl KineticBase {
         // Excitation is what the data tell; the published uncertainty adds
         // what no data of this vessel can: how unlike its propellers are.
         let published = |s: f64| s.hypot(self.propeller_mismatch_sigma);
+        // The comparison is one quantity, told in two ways: the weaker
+        // propeller's relative loss has the narrower uncertainty (it
+        // divides by the stronger one's effectiveness), and once it is
+        // within the bar the data tell both sides.
+        let pair_excited = sp.min(ss) <= self.relative_excitation_sigma;
+        let relative_excited = [pair_excited; 2];
+        let excited = sigma.map(|s| s <= self.excitation_sigma);
+        // Where the data tell only how the propellers compare, the losses
+        // published are the smallest the comparison allows (a loss is never
+        // negative): the weaker propeller's relative loss, none on the
+        // other. A propeller that fails does so alone far more often than
+        // both lose alike, and the uncertainty (with the common part's
+        // floor) still covers the case where they do.
+        let weaker = usize::from(rs > rp);
+        let loss = if !excited[0] && !excited[1] && relative_excited[weaker] {
+            let mut smallest = [0.0; 2];
+            smallest[weaker] = [rp, rs][weaker].max(0.0);
+            smallest
+        } else {
+            loss
+        };
         LossReading {
             loss,
             sigma,
@@ -522,8 +544,8 @@ impl KineticBase {
             // The data pin a loss down when its standard deviation, with
             // everything else unknown, is within the bar: the prior alone
             // never is.
-            excited: sigma.map(|s| s <= self.excitation_sigma),
-            relative_excited: [sp, ss].map(|s| s <= self.relative_excitation_sigma),
+            excited,
+            relative_excited,
         }
     }
 }
