@@ -13,7 +13,6 @@
 use twin_cli::trials::{
     Cell, TrialPath, forecast_coverage, loss_sets, prediction_comparison, seed_sets,
 };
-use twin_core::twin::TwinConfig;
 
 /// The forecast's 1-sigma band holds the truth 60-75 % of the time and the
 /// 2-sigma band 90-98 %, over the S-manoeuvre cells in harbour water (12
@@ -29,7 +28,8 @@ fn forecast_bands_hold_the_truth_at_their_stated_rates() {
                 current: None,
                 seed,
             };
-            let (a, b, m) = forecast_coverage(&cell, TwinConfig::default(), &[40.0, 60.0, 80.0]);
+            let (a, b, m) =
+                forecast_coverage(&cell, twin_cli::trials::trials_twin(), &[40.0, 60.0, 80.0]);
             w1 += a;
             w2 += b;
             n += m;
