@@ -13,7 +13,9 @@ use twin_tests::wire::{
     Messages, messages, offline, receive_until, receive_until_fault, scenario as scenario_file,
     simulate as scenario,
 };
-use twin_wire::outputs::{FaultMessage, FindingsMessage, PredictionMessage, StateMessage};
+use twin_wire::outputs::{
+    FaultMessage, FindingsMessage, PredictionMessage, StateMessage, ThrusterStatusName,
+};
 use twind::forecast::{FaultPathLoad, SATURATED_AFTER};
 use twind::settings::Settings;
 use zenoh::Session;
@@ -44,7 +46,11 @@ async fn a_replayed_trial_gives_the_daemon_the_offline_estimates() {
     );
     // Identical estimates: the same messages, the same code, the same numbers.
     assert_eq!(fault.thrusters, offline_fault.thrusters);
-    assert!((fault.thrusters.port.loss.unwrap() - 0.18).abs() < 0.03);
+    // And right: the port propeller's effectiveness, against the starboard
+    // one's, within two of its standard deviations of the truth's 0.82.
+    let ratio = fault.effectiveness_ratio.expect("a ratio");
+    assert!((ratio.value - 0.82).abs() <= 2.0 * ratio.sigma, "{ratio:?}");
+    assert_eq!(fault.thrusters.port.status, ThrusterStatusName::Fault);
     // Every fix gave a state, in order, and the last one is the offline one.
     let st = states(&samples);
     let fixes = msgs.iter().filter(|(t, _)| *t == "gnss").count();

@@ -287,11 +287,25 @@ fn extended_result(twin: &VesselTwin) -> ExtendedResult {
     }
 }
 
+/// How well a twin identified from a trial of the trials' vessel knows its
+/// profile (relative standard deviations of surge damping, yaw damping,
+/// thrust coefficient and mass): the simulated vessel is the profile's
+/// Otter, so these tables are of a twin whose profile is right. The trust
+/// matrix (`tests/src/trust.rs`) runs vessels that differ from the profile,
+/// with the default, unidentified one.
+pub const IDENTIFIED_PROFILE_SIGMA: [f64; 4] = [0.01; 4];
+
+/// The twin the trials run: its profile identified
+/// ([`IDENTIFIED_PROFILE_SIGMA`]).
+pub fn trials_twin() -> TwinConfig {
+    TwinConfig::identified(IDENTIFIED_PROFILE_SIGMA)
+}
+
 /// Runs one cell through the simulator and the three estimators.
 pub fn run_cell(cell: &Cell) -> CellResult {
     let run = twin_sim::simulate(&scenario(cell)).expect("the cell's scenario is valid");
-    let (twin, _) = feed(&run, TwinConfig::default(), true);
-    let mut no_current = TwinConfig::default();
+    let (twin, _) = feed(&run, trials_twin(), true);
+    let mut no_current = trials_twin();
     no_current.kinetic.estimate_current = false;
     let (twin_nc, _) = feed(&run, no_current, true);
     let (seed_twin, series) = feed(&run, TwinConfig::default(), false);
@@ -405,7 +419,7 @@ pub fn prediction_comparison(seed: u64, horizon_s: f64, calm_water: bool) -> Pre
     let t_split = t_end - horizon_s;
 
     // Calibrate both twins on the data before the split.
-    let mut kinetic = VesselTwin::new(TwinConfig::default()).expect("valid config");
+    let mut kinetic = VesselTwin::new(trials_twin()).expect("valid config");
     let mut seed_twin = VesselTwin::new(TwinConfig::default()).expect("valid config");
     for event in run.events.iter().filter(|e| e.time_s() <= t_split) {
         match event {

@@ -29,7 +29,8 @@ fn forecast_bands_hold_the_truth_at_their_stated_rates() {
                 current: None,
                 seed,
             };
-            let (a, b, m) = forecast_coverage(&cell, TwinConfig::default(), &[40.0, 60.0, 80.0]);
+            let (a, b, m) =
+                forecast_coverage(&cell, twin_cli::trials::trials_twin(), &[40.0, 60.0, 80.0]);
             w1 += a;
             w2 += b;
             n += m;

@@ -174,6 +174,21 @@ impl Default for TwinConfig {
     }
 }
 
+impl TwinConfig {
+    /// The twin of a vessel whose profile is its own, identified from a
+    /// trial of it to `profile_sigma` (the relative standard deviations of
+    /// its surge damping, yaw damping, thrust coefficient and mass):
+    /// [`KineticConfig::identified`]. With it the losses themselves, not
+    /// only how the propellers compare, can be told. The default assumes
+    /// an unidentified profile.
+    pub fn identified(profile_sigma: [f64; 4]) -> Self {
+        Self {
+            kinetic: KineticConfig::identified(profile_sigma),
+            ..Self::default()
+        }
+    }
+}
+
 /// Which estimator a fault estimate comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FaultSource {
@@ -411,6 +426,29 @@ struct KineticEstimator {
     last_report: Option<KineticReport>,
     last_available: [bool; MEASUREMENTS],
     last_input: Option<ShaftSpeeds>,
+    /// Exponentially weighted mean of the unit heading vector over the
+    /// filter's memory (see [`KineticConfig::min_heading_spread`]).
+    heading_mean: [f64; 2],
+}
+
+impl KineticEstimator {
+    /// Moves the heading's running mean towards the estimate after a step
+    /// of `dt_s`, or starts it at the estimate.
+    fn track_heading(&mut self, dt_s: Option<f64>) {
+        let Some(state) = &self.state else { return };
+        let (sin_h, cos_h) = state.x[idx::PSI].sin_cos();
+        let m = &mut self.heading_mean;
+        let w = dt_s.map_or(1.0, |dt| 1.0 - self.base.filter().lambda(dt));
+        m[0] += w * (cos_h - m[0]);
+        m[1] += w * (sin_h - m[1]);
+    }
+
+    /// How much the heading has varied over the filter's memory:
+    /// `1 - |mean unit heading vector|` (0 on a straight line, 1 - 2/pi for
+    /// a half circle).
+    fn heading_spread(&self) -> f64 {
+        1.0 - self.heading_mean[0].hypot(self.heading_mean[1])
+    }
 }
 
 /// What [`VesselTwin::on_gnss`] can have changed when a step fails: the
@@ -503,6 +541,7 @@ impl VesselTwin {
                 state: None,
                 last_report: None,
                 last_available: [false; MEASUREMENTS],
+                heading_mean: [0.0; 2],
                 last_input: None,
             },
             config,
@@ -850,9 +889,11 @@ impl VesselTwin {
                     .map_err(Rejection::Estimator)?;
                 kinetic.last_report = Some(report);
                 kinetic.last_available = kinetic.base.measurement(fix).available;
+                kinetic.track_heading(Some(dt));
             }
             _ => {
                 kinetic.state = Some(kinetic.base.prior(fix, restored.as_ref()));
+                kinetic.track_heading(None);
             }
         }
         kinetic.last_input = Some(u);
@@ -989,7 +1030,12 @@ impl VesselTwin {
             .unwrap_or_else(SVector::zeros);
         let (source, thrusters, loss_covariance, profile_errors) = match &self.kinetic.state {
             Some(k) => {
-                let r = self.kinetic.base.losses(k);
+                // With the current estimated, a loss both propellers share
+                // and a current along the track slow the vessel alike until
+                // it turns ([`KineticConfig::min_heading_spread`]).
+                let common_part_told = !self.config.kinetic.estimate_current
+                    || self.kinetic.heading_spread() >= self.config.kinetic.min_heading_spread;
+                let r = self.kinetic.base.losses(k, common_part_told);
                 let damping_of = |i: usize| (k.theta[i], k.s[(i, i)].max(0.0).sqrt());
                 (
                     FaultSource::Kinetic,

@@ -692,7 +692,10 @@ impl VesselTask {
         let events = monitor.start(fix.time_s);
         let config = DiagnoseConfig {
             threads: 1,
-            twin: self.settings.twin,
+            twin: twin_core::twin::TwinConfig {
+                kinetic: self.settings.twin.kinetic.for_search(),
+                ..self.settings.twin
+            },
             ..DiagnoseConfig::default()
         };
         let vessel = self.id.as_str().to_string();

@@ -141,7 +141,12 @@ impl Default for DiagnoseConfig {
             acceptance: Acceptance::default(),
             max_findings: 4,
             threads: 1,
-            twin: TwinConfig::default(),
+            // The harbour water's random forces alone: what the model lacks
+            // must show in the residuals, not be absorbed by the velocities.
+            twin: TwinConfig {
+                kinetic: crate::estimator::KineticConfig::otter().for_search(),
+                ..TwinConfig::default()
+            },
             // Any vessel: position and heading follow the velocity; speed and
             // yaw rate wander (0.1 m/s^2 and 0.01 rad/s^2 over a second); the
             // current drifts slowly.

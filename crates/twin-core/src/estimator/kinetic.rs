@@ -55,6 +55,14 @@ pub struct KineticConfig {
     pub excitation_sigma: f64,
     /// The same for its loss relative to the other propeller.
     pub relative_excitation_sigma: f64,
+    /// With the current estimated, a loss both propellers share and a
+    /// current along the track slow the vessel alike: only turning
+    /// separates them, and a filter linearised along that ridge claims more
+    /// than it knows. The losses count as excited on their own only while
+    /// the heading over the filter's memory has spread at least this much:
+    /// `1 - |mean of (cos psi, sin psi)|`, 0.05 being about a 65 deg arc.
+    /// Their comparison (the yaw balance) needs no turn.
+    pub min_heading_spread: f64,
     /// How much two propellers of one make differ when both are healthy
     /// (thrust coefficients, shaft-speed sensors, their distance from the
     /// centre line), as a standard deviation of their relative
@@ -74,20 +82,57 @@ impl KineticConfig {
     /// simulator's default disturbance, `twin_sim::DisturbanceSpec`); the
     /// current and the heading sensor's offset drift slowly.
     pub fn otter() -> Self {
+        Self::otter_with(UNMODELLED_FORCE_FACTOR)
+    }
+
+    /// The Otter whose profile was identified from a trial of this very
+    /// vessel, its errors known to `profile_sigma` (relative standard
+    /// deviations of surge damping, yaw damping, thrust coefficient and
+    /// mass): the velocities' process noise is the water's alone, and the
+    /// losses' common part is known as well as the profile is.
+    pub fn identified(profile_sigma: [f64; 4]) -> Self {
+        let mut config = Self::otter_with(1.0);
+        config.set_profile_sigma(profile_sigma);
+        config
+    }
+
+    /// This configuration with the velocities' process noise of the
+    /// harbour water alone ([`Self::otter_with`] 1), for a search of what
+    /// the model lacks: its misfit must show in the residuals.
+    pub fn for_search(mut self) -> Self {
+        self.filter.process_noise_density = Self::otter_with(1.0).filter.process_noise_density;
+        self
+    }
+
+    /// Sets [`Self::profile_sigma`] and the profile errors' prior with it.
+    pub fn set_profile_sigma(&mut self, profile_sigma: [f64; 4]) {
+        self.profile_sigma = profile_sigma;
+        for (k, s) in profile_sigma.iter().enumerate() {
+            self.filter.initial_fault_covariance
+                [(fault::SURGE_DAMPING + k, fault::SURGE_DAMPING + k)] = s * s;
+        }
+    }
+
+    /// [`Self::otter`] with the velocities' process noise
+    /// `unmodelled_force_factor` times the harbour water's (1: the water
+    /// alone, for a search of what the model lacks, `twin diagnose`, where
+    /// the misfit must show in the residuals rather than in the states).
+    pub fn otter_with(unmodelled_force_factor: f64) -> Self {
+        let f = unmodelled_force_factor;
         let mut q = SMatrix::<f64, STATES, STATES>::from_diagonal(&SVector::<f64, STATES>::from([
             1e-6,
             1e-6,
             1e-7, // position and heading
-            4.9e-3 * UNMODELLED_FORCE_FACTOR,
-            2.5e-3 * UNMODELLED_FORCE_FACTOR,
-            7.8e-4 * UNMODELLED_FORCE_FACTOR, // surge, sway, yaw accelerations
+            4.9e-3 * f,
+            2.5e-3 * f,
+            7.8e-4 * f, // surge, sway, yaw accelerations
             1e-6,
             1e-6, // current
             1e-8, // heading sensor offset
         ]));
         // The sway-yaw mass coupling turns a sway force into a yaw acceleration too.
-        q[(idx::V, idx::R)] = -7.7e-4 * UNMODELLED_FORCE_FACTOR;
-        q[(idx::R, idx::V)] = -7.7e-4 * UNMODELLED_FORCE_FACTOR;
+        q[(idx::V, idx::R)] = -7.7e-4 * f;
+        q[(idx::R, idx::V)] = -7.7e-4 * f;
         let r = SVector::<f64, MEASUREMENTS>::from([
             0.3 * 0.3,
             0.3 * 0.3,
@@ -125,6 +170,7 @@ impl KineticConfig {
             max_propeller_age_s: 1.0,
             excitation_sigma: 0.1,
             relative_excitation_sigma: 0.05,
+            min_heading_spread: 0.05,
             propeller_mismatch_sigma: 0.03,
         }
     }
@@ -194,6 +240,8 @@ pub struct KineticBase {
     excitation_sigma: f64,
     relative_excitation_sigma: f64,
     propeller_mismatch_sigma: f64,
+    /// The losses' prior variance.
+    prior_loss_variance: f64,
     /// The variance of the losses' common part that no data resolve (see
     /// [`KineticBase::losses`]).
     common_mode_variance: f64,
@@ -275,6 +323,7 @@ impl KineticBase {
             excitation_sigma: config.excitation_sigma,
             relative_excitation_sigma: config.relative_excitation_sigma,
             propeller_mismatch_sigma: config.propeller_mismatch_sigma,
+            prior_loss_variance: config.filter.initial_fault_covariance[(fault::PORT, fault::PORT)],
             // The thrust coefficient's and the surge damping's errors both
             // scale the thrust-to-resistance balance.
             common_mode_variance: config.profile_sigma[0].powi(2) + config.profile_sigma[2].powi(2),
@@ -475,7 +524,11 @@ impl KineticBase {
     }
 
     /// The losses of `state` as a controller reads them ([`LossReading`]).
-    pub fn losses(&self, state: &KineticState) -> LossReading {
+    /// `common_part_told`: whether the data can separate the losses'
+    /// common part from what else slows the vessel (false on a straight
+    /// run with the current estimated): without it no loss is excited on
+    /// its own.
+    pub fn losses(&self, state: &KineticState, common_part_told: bool) -> LossReading {
         let t = &state.theta;
         let s = &state.s;
         let (p, sb) = (fault::PORT, fault::STARBOARD);
@@ -492,8 +545,15 @@ impl KineticBase {
         // cancels in them).
         let e = [1.0 - loss[0], 1.0 - loss[1]];
         let floor = self.common_mode_variance;
+        // Where the common part is not told at all, it is as uncertain as
+        // the losses' prior, whatever the estimate has drifted to.
+        let untold = if common_part_told {
+            0.0
+        } else {
+            self.prior_loss_variance
+        };
         let covariance: [[f64; 2]; 2] = std::array::from_fn(|i| {
-            std::array::from_fn(|j| filter_covariance[i][j] + floor * e[i] * e[j])
+            std::array::from_fn(|j| filter_covariance[i][j] + floor * e[i] * e[j] + untold)
         });
         let sigma = [
             covariance[0][0].max(0.0).sqrt(),
@@ -520,7 +580,7 @@ impl KineticBase {
         // within the bar the data tell both sides.
         let pair_excited = sp.min(ss) <= self.relative_excitation_sigma;
         let relative_excited = [pair_excited; 2];
-        let excited = sigma.map(|s| s <= self.excitation_sigma);
+        let excited = sigma.map(|s| common_part_told && s <= self.excitation_sigma);
         // Where the data tell only how the propellers compare, the losses
         // published are the smallest the comparison allows (a loss is never
         // negative): the weaker propeller's relative loss, none on the
