@@ -60,6 +60,12 @@ pub const BLOCKS: &[Block] = &[
         shape: Shape::Markdown,
     },
     Block {
+        name: "trust",
+        file: "docs/accuracy.md",
+        command: "cargo run --release -q -p twin-tests --example trust_matrix 2>/dev/null",
+        shape: Shape::Markdown,
+    },
+    Block {
         name: "analyze-real",
         file: "docs/accuracy.md",
         command: "cargo xtask real-logs",

@@ -10,7 +10,6 @@
 //! twin's open-loop forecast through the recorded propeller speeds amplifies
 //! any heading error over tens of seconds. Its bands widen accordingly.
 
-use twin_core::twin::TwinConfig;
 use xtask::trials::{
     Cell, TrialPath, forecast_coverage, loss_sets, prediction_comparison, seed_sets,
 };
@@ -30,7 +29,7 @@ fn forecast_bands_hold_the_truth_at_their_stated_rates() {
                 seed,
             };
             let (a, b, m) =
-                forecast_coverage(&cell, twin_cli::trials::trials_twin(), &[40.0, 60.0, 80.0]);
+                forecast_coverage(&cell, xtask::trials::trials_twin(), &[40.0, 60.0, 80.0]);
             w1 += a;
             w2 += b;
             n += m;

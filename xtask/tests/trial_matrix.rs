@@ -121,13 +121,16 @@ fn s_manoeuvre_cells_in_a_current_need_the_current_state() {
 
 /// On a straight line at constant propeller speeds, a loss shared by both
 /// propellers and a current along the track slow the vessel alike: with the
-/// current estimated, the losses themselves cannot be told, and the twin says
-/// so (not excited). What can be told is the ratio of the two propellers'
+/// current estimated, the losses themselves cannot be told until the vessel
+/// turns, and the twin says so: each loss within three of its stated
+/// standard deviations, and no healthy propeller declared FAULT. What can be told is the ratio of the two propellers'
 /// effectiveness, from the yaw balance: `(1 - loss_port) / (1 - loss_stb)`,
 /// which lies within three of its stated standard deviations of the truth.
 /// Without a current state (and with no current), the losses are told, within
 /// their stated uncertainty.
 #[test]
+// The index is the propeller side (0 port, 1 starboard) across three arrays.
+#[allow(clippy::needless_range_loop)]
 fn straight_line_cells_say_what_can_be_told() {
     for current in [0.0, 0.3] {
         let results = run(TrialPath::Straight, current);

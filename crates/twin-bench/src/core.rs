@@ -511,7 +511,7 @@ fn push_seed_row(rows: &mut Vec<Row>, spec: &TrialSpec, t: &Timing) {
 /// run (`twin_core::simd`): how much of the row above the wider vectors
 /// give. Without AVX2 both are the baseline code, and the row says so.
 fn push_copies_row(rows: &mut Vec<Row>, model: &str, [dispatched, baseline]: &[Timing; 2]) {
-    let value = if twin_core::simd::avx2_available() {
+    let value = if twin_core::avx2_available() {
         format!(
             "{} / {} ({:.2}x)",
             duration_text(dispatched.ns_per_step_median),

@@ -22,7 +22,7 @@ fn a_pymavlink_boat_over_udp_is_its_tlog() {
     require_python_module(
         &python,
         "pymavlink",
-        "python3 -m pip install -r tests/peers/requirements.txt",
+        "python3 -m pip install -r requirements.txt",
     );
     let dir = std::env::temp_dir().join(format!("twin-bridge-mavlink-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

@@ -1,4 +1,4 @@
-//! The adaptive extended Kalman filter (MODEL.md section 4; Zhang 2018,
+//! The adaptive extended Kalman filter (docs/model.md section 4; Zhang 2018,
 //! Skriver-Helck-Hasan 2019): joint estimation of a vessel's state and of a
 //! loss of effectiveness `theta` on its inputs.
 //!
@@ -9,7 +9,7 @@
 //! was. Every failure is an [`AekfError`], never a panic.
 //!
 //! # The recursion (one step, consuming `y(k+1)` and the input `u(k)`)
-//! Steps 1-13 of MODEL.md section 4, with these deliberate differences, each
+//! Steps 1-13 of docs/model.md section 4, with these deliberate differences, each
 //! documented where it is coded:
 //! - the covariance update uses the Joseph form;
 //! - forgetting is configured as a time constant and `lambda = exp(-dt/tau)`
@@ -63,7 +63,7 @@ pub enum MeasurementNoiseForm {
     /// Akhlaghi et al. 2017: `R <- a R + (1-a)(eps eps^T + H P+ H^T)` with the
     /// post-fit residual `eps = y - h(x+)`. Unbiased: `E[eps eps^T] = R - H P+ H^T`.
     PostFitResidual,
-    /// The seed authors' code (MODEL.md section 4):
+    /// The seed authors' code (docs/model.md section 4):
     /// `R <- a R + (1-a)(ytilde ytilde^T + H P- H^T)` with the prior innovation.
     /// Since `E[ytilde ytilde^T] = H P- H^T + R`, this converges to
     /// `R + 2 H P- H^T`: biased upward. Kept to reproduce the seed.
@@ -712,7 +712,7 @@ where
     }
 }
 
-/// The Joseph form of the covariance update (MODEL.md section 4, step 5),
+/// The Joseph form of the covariance update (docs/model.md section 4, step 5),
 /// `P+ = (I - K H) P- (I - K H)^T + K R K^T`, for any gain `K`, given
 /// `H P-` (`h_p`) and `K R` (`k_r`), where `H` keeps to `h_pattern`.
 ///

@@ -1,5 +1,5 @@
 //! WGS-84 geodesy for the twin: latitude/longitude to a local flat-earth
-//! North-East frame and back (MODEL.md section 2), and angle helpers.
+//! North-East frame and back (docs/model.md section 2), and angle helpers.
 //!
 //! The flat-earth approximation is the one of Fossen's `llh2flat`: north uses
 //! the meridian radius of curvature `R_M`, east uses the prime-vertical radius

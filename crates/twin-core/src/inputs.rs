@@ -1,4 +1,4 @@
-//! The seed's inputs derived from GNSS (MODEL.md section 3): acceleration
+//! The seed's inputs derived from GNSS (docs/model.md section 3): acceleration
 //! along the track `a = dU/dt` and course rate `r = dchi/dt` by finite
 //! differences of SOG and COG over irregular time steps (course differences
 //! wrapped), followed by a causal low-pass.

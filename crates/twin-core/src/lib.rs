@@ -31,12 +31,14 @@ pub mod diagnose;
 pub mod estimator;
 pub mod geodesy;
 pub mod inputs;
-pub mod linalg;
+mod linalg;
 pub mod model;
 pub mod models;
 pub mod otter;
 pub mod predict;
 pub mod sample;
-pub mod simd;
-pub mod trig;
+mod simd;
+mod trig;
 pub mod twin;
+
+pub use simd::avx2_available;

@@ -387,6 +387,8 @@ pub fn mirror_lower<const N: usize>(m: &mut SMatrix<f64, N, N>) {
 }
 
 /// Solves `L y = b` for lower-triangular `L`, column by column.
+/// (The tests' reference solve.)
+#[cfg(test)]
 #[inline]
 pub fn solve_lower<const M: usize, const C: usize>(
     l: &SMatrix<f64, M, M>,
@@ -407,6 +409,8 @@ pub fn solve_lower<const M: usize, const C: usize>(
 }
 
 /// Solves `L^T x = y` for lower-triangular `L`, column by column.
+/// (The tests' reference solve.)
+#[cfg(test)]
 #[inline]
 pub fn solve_upper_transposed<const M: usize, const C: usize>(
     l: &SMatrix<f64, M, M>,
@@ -427,6 +431,8 @@ pub fn solve_upper_transposed<const M: usize, const C: usize>(
 }
 
 /// Solves `A x = b` given the Cholesky factor `L` of `A`.
+/// (The tests' reference solve.)
+#[cfg(test)]
 #[inline]
 pub fn cholesky_solve<const M: usize, const C: usize>(
     l: &SMatrix<f64, M, M>,

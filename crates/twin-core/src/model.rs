@@ -17,14 +17,14 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use crate::linalg::{Pattern, dense};
+pub use crate::linalg::{Pattern, dense};
 
 /// What one step of a model predicts, with the derivatives the filter needs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Transition<const N: usize, const P: usize> {
     /// The predicted next state `g(x, u, theta)` (angles wrapped).
     pub next: SVector<f64, N>,
-    /// `d next / d x` at the linearisation point (the `F` of MODEL.md section 4).
+    /// `d next / d x` at the linearisation point (the `F` of docs/model.md section 4).
     pub jacobian: SMatrix<f64, N, N>,
     /// `d next / d theta`: the fault sensitivity `Psi`.
     pub fault_sensitivity: SMatrix<f64, N, P>,
@@ -35,7 +35,7 @@ pub struct Transition<const N: usize, const P: usize> {
 pub struct Observation<const N: usize, const M: usize> {
     /// `h(x)`.
     pub predicted: SVector<f64, M>,
-    /// `d h / d x` (the `C` of MODEL.md section 4).
+    /// `d h / d x` (the `C` of docs/model.md section 4).
     pub jacobian: SMatrix<f64, M, N>,
 }
 

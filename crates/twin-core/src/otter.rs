@@ -1,6 +1,6 @@
-//! The Otter's parameters (MODEL.md section 6, from Fossen's `otter.m` and the
+//! The Otter's parameters (docs/model.md section 6, from Fossen's `otter.m` and the
 //! Python Vehicle Simulator with a 25 kg payload), and the seed's step 4:
-//! from faults on the kinematic inputs to a fault per thruster (MODEL.md
+//! from faults on the kinematic inputs to a fault per thruster (docs/model.md
 //! section 5), done with the correct thrust split.
 //!
 //! Numbers only live here; the simulator (`twin-sim`) keeps its own copy of
@@ -50,7 +50,7 @@ pub struct OtterParams {
 }
 
 impl Default for OtterParams {
-    /// The Otter with a 25 kg payload (MODEL.md section 6).
+    /// The Otter with a 25 kg payload (docs/model.md section 6).
     fn default() -> Self {
         let yaw_inertia_total = 42.65;
         Self {

@@ -7,7 +7,7 @@
 //!   leaves the estimate exactly as it was;
 //! - the seed's method: inputs derived from GNSS, the kinematic model in the
 //!   adaptive EKF, and the seed's step 4 to per-thruster "faults" (kept for
-//!   comparison: MODEL.md section 5 explains why it cannot see a thrust loss);
+//!   comparison: docs/model.md section 5 explains why it cannot see a thrust loss);
 //! - the extended twin: the Otter's kinetic model driven by the measured
 //!   propeller speeds, estimating each propeller's loss and the water current,
 //!   active while propeller data arrive;
@@ -195,7 +195,7 @@ pub enum FaultSource {
     /// The extended twin: per-propeller losses from propeller speeds.
     Kinetic,
     /// The seed's method: per-thruster values from its input faults (step 4).
-    /// Not a measurement of thrust loss (MODEL.md section 5).
+    /// Not a measurement of thrust loss (docs/model.md section 5).
     SeedMethod,
 }
 

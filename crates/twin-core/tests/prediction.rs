@@ -241,7 +241,7 @@ impl Model<STATES, MEASUREMENTS, FAULTS> for SubStepChain {
         self.0.state_names()
     }
 
-    const TRANSITION_PATTERN: twin_core::linalg::Pattern<STATES, STATES> =
+    const TRANSITION_PATTERN: twin_core::model::Pattern<STATES, STATES> =
         <OtterTwin as Model<STATES, MEASUREMENTS, FAULTS>>::TRANSITION_PATTERN;
 }
 

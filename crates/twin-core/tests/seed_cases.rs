@@ -1,4 +1,4 @@
-//! The seed's simulation cases (MODEL.md section 7, thesis section 4.1)
+//! The seed's simulation cases (docs/model.md section 7, thesis section 4.1)
 //! reproduced with the seed's kinematic model and the adaptive EKF.
 //!
 //! The truth here is the seed's own kinematic model, integrated exactly as the
@@ -211,7 +211,7 @@ fn case1_converges_within_one_second_and_follows_input_changes() {
     }
 }
 
-/// MODEL.md section 4 quotes the authors' code form: relative error within
+/// docs/model.md section 4 quotes the authors' code form: relative error within
 /// 5 % after 0.50 s and within 2 % after 0.66 s. That code adapts Q and R
 /// (authors' form); with the same, our recursion gives the same timings.
 #[test]

@@ -257,7 +257,7 @@ const HELD_VARIANCE: f64 = 1e-12;
 pub struct LossReading {
     /// Loss of each propeller `[port, starboard]`: the filter's estimate
     /// where it is excited, else the smallest losses the relative loss
-    /// allows, where that is excited ([`KineticBase::losses`]).
+    /// allows ([`KineticBase::losses`]).
     pub loss: [f64; 2],
     /// Its standard deviation, with every other fault (the other loss, the
     /// damping errors) unknown: the marginal of the filter's covariance.
@@ -536,7 +536,7 @@ impl KineticBase {
         let filter_covariance = [[s[(p, p)], s[(p, sb)]], [s[(sb, p)], s[(sb, sb)]]];
         // The part of the losses common to both propellers is known only as
         // well as the profile's thrust-to-resistance balance (docs/model.md
-        // section 8): what the filter learns of it comes from how quickly
+        // sections 8 and 10): what the filter learns of it comes from how quickly
         // the vessel answers its propellers, which waves, wakes and every
         // unmodelled motion blur. The published uncertainty is therefore
         // never narrower along the common part than the profile's: a
@@ -581,14 +581,16 @@ impl KineticBase {
         let pair_excited = sp.min(ss) <= self.relative_excitation_sigma;
         let relative_excited = [pair_excited; 2];
         let excited = sigma.map(|s| common_part_told && s <= self.excitation_sigma);
-        // Where the data tell only how the propellers compare, the losses
-        // published are the smallest the comparison allows (a loss is never
-        // negative): the weaker propeller's relative loss, none on the
-        // other. A propeller that fails does so alone far more often than
-        // both lose alike, and the uncertainty (with the common part's
-        // floor) still covers the case where they do.
+        // Where the data do not tell the losses themselves, the losses
+        // published are the smallest the comparison of the propellers
+        // allows (a loss is never negative): the weaker propeller's
+        // relative loss, none on the other. A propeller that fails does so
+        // alone far more often than both lose alike, and the uncertainty
+        // (with the common part's floor) still covers the case where they
+        // do. One rule whether or not the comparison is excited yet, so that
+        // the published loss does not jump when its excitation comes or goes.
         let weaker = usize::from(rs > rp);
-        let loss = if !excited[0] && !excited[1] && relative_excited[weaker] {
+        let loss = if !excited[0] && !excited[1] {
             let mut smallest = [0.0; 2];
             smallest[weaker] = [rp, rs][weaker].max(0.0);
             smallest

@@ -1,4 +1,4 @@
-//! The seed's kinematic model (MODEL.md section 3): state
+//! The seed's kinematic model (docs/model.md section 3): state
 //! `[north_m, east_m, sog_mps, course_rad]`, input `[a, r]` (acceleration along
 //! the track, m/s^2, and course rate, rad/s), faults `theta = [theta_a,
 //! theta_r]`, a loss of effectiveness on each input. All four states are
