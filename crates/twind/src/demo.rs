@@ -48,9 +48,13 @@ fn describe(f: &FaultMessage) -> String {
     };
     match f.model {
         twin_wire::outputs::ModelName::Kinetic => format!(
-            "port {}   starboard {}   [extended twin]",
+            "port {}   starboard {}   port/starboard effectiveness {}   [extended twin]",
             side(&f.thrusters.port),
-            side(&f.thrusters.starboard)
+            side(&f.thrusters.starboard),
+            f.effectiveness_ratio.map_or("n/a".to_string(), |r| format!(
+                "{:.3} +- {:.3}",
+                r.value, r.sigma
+            ))
         ),
         twin_wire::outputs::ModelName::SeedMethod => format!(
             "no propeller data: thrust loss not observable from GNSS alone (seed method input faults a {:.2}, r {:.2})",

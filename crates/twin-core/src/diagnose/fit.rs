@@ -347,6 +347,9 @@ struct Fitted {
     /// The fit ran to the edge of its search range: the value is not
     /// determined (another cause, or several, is being imitated).
     at_edge: bool,
+    /// The fit ran to a physical bound of its cause (a latency of zero,
+    /// wanting a negative one): what it says instead, for the rejection.
+    beyond_physics: Option<&'static str>,
     /// The state estimates of the fitting pass (for refreshing the
     /// parameters of state causes accepted earlier and re-estimated jointly).
     states: Option<AtSplit>,
@@ -412,6 +415,27 @@ fn state_parameters(cause: Cause, s: &AtSplit, acc: &Acceptance) -> StateParamet
     }
 }
 
+/// Why a latency fit that wants to go below zero is not a latency.
+const NEGATIVE_LATENCY: &str = "it wants a negative latency, which no receiver has: the fixes lead the model, \
+     a difference in the vessel's dynamics (a time constant, damping, mass), not a clock";
+
+/// Whether a latency fit at its physical floor (zero) would fit the
+/// training data better still below it (by `margin_nll`, at 0.1 s below):
+/// the data want a negative latency.
+fn wants_below(
+    cause: Cause,
+    v: f64,
+    lo: f64,
+    hi: f64,
+    nll: &dyn Fn(f64) -> f64,
+    margin_nll: f64,
+) -> bool {
+    cause == Cause::GnssLatency
+        && near_edge(v, lo, hi)
+        && v < 0.5 * (lo + hi)
+        && nll(lo - 0.1) < nll(lo) - margin_nll
+}
+
 /// True when `v` is within 2 % of the width of `[lo, hi]` from an end.
 fn near_edge(v: f64, lo: f64, hi: f64) -> bool {
     let margin = 0.02 * (hi - lo);
@@ -465,6 +489,7 @@ fn fit(ctx: &Ctx<'_>, accepted: &Hypothesis, cause: Cause) -> Option<Fitted> {
                 z,
                 practical,
                 at_edge: false,
+                beyond_physics: None,
                 states: Some(s),
             })
         }
@@ -500,7 +525,9 @@ fn fit(ctx: &Ctx<'_>, accepted: &Hypothesis, cause: Cause) -> Option<Fitted> {
                 Cause::SogScale => (0.85, 1.15, 6, 1.0),
                 Cause::StwScale => (0.7, 1.3, 6, 1.0),
                 Cause::Sideslip => (-20.0, 20.0, 8, 0.0),
-                _ => (-1.5, 1.5, 6, 0.0),
+                // A fix is stamped at or after the instant it describes, never
+                // before: a latency is physically in [0, 2] s.
+                _ => (0.0, 2.0, 6, 0.0),
             };
             let (v, sd) = minimise_1d(&f, lo, hi, grid);
             let mut h = with(v);
@@ -527,6 +554,8 @@ fn fit(ctx: &Ctx<'_>, accepted: &Hypothesis, cause: Cause) -> Option<Fitted> {
                 z: (v - neutral).abs() / sd.max(1e-12),
                 practical,
                 at_edge: near_edge(v, lo, hi),
+                beyond_physics: wants_below(cause, v, lo, hi, &f, acc.min_gain_nll)
+                    .then_some(NEGATIVE_LATENCY),
                 states: Some(out.at_split),
             })
         }
@@ -563,6 +592,7 @@ fn fit(ctx: &Ctx<'_>, accepted: &Hypothesis, cause: Cause) -> Option<Fitted> {
                 z: size / sd.max(1e-12),
                 practical: acc.min_lever_arm_m,
                 at_edge: near_edge(x, -10.0, 10.0) || near_edge(y, -10.0, 10.0),
+                beyond_physics: None,
                 states: Some(out.at_split),
             })
         }
@@ -691,7 +721,9 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
         let mut took = None;
         for (f, out) in scored {
             let gain = current_out.nll_test - out.nll_test;
-            let reason = if gain < config.acceptance.min_gain_nll {
+            let reason = if let Some(why) = f.beyond_physics {
+                Some(why.to_string())
+            } else if gain < config.acceptance.min_gain_nll {
                 Some(format!(
                     "held-out log-likelihood gain {gain:.1} < {}",
                     config.acceptance.min_gain_nll
@@ -777,5 +809,44 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
         rejected,
         nominal_records,
         extended_records: current_out.records,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A latency is searched in [0, 2] s only; a fit stopped at zero is
+    /// said to want a negative latency only when the data fit better below
+    /// zero, and never for another cause.
+    #[test]
+    fn a_latency_fit_at_zero_wants_below_only_when_the_data_do() {
+        let (lo, hi) = (0.0, 2.0);
+        let wants_negative = |v: f64| 1000.0 * (v + 0.15).powi(2);
+        let at_zero = |v: f64| 1000.0 * v.powi(2);
+        let (v, _) = minimise_1d(&wants_negative, lo, hi, 6);
+        assert!(v < 0.05, "the search stops at the floor: {v}");
+        assert!(wants_below(
+            Cause::GnssLatency,
+            v,
+            lo,
+            hi,
+            &wants_negative,
+            2.0
+        ));
+        let (v, _) = minimise_1d(&at_zero, lo, hi, 6);
+        assert!(!wants_below(Cause::GnssLatency, v, lo, hi, &at_zero, 2.0));
+        assert!(!wants_below(
+            Cause::SogScale,
+            v,
+            lo,
+            hi,
+            &wants_negative,
+            2.0
+        ));
+        let inside = |v: f64| 1000.0 * (v - 0.4).powi(2);
+        let (v, _) = minimise_1d(&inside, lo, hi, 6);
+        assert!((v - 0.4).abs() < 0.02, "{v}");
+        assert!(!wants_below(Cause::GnssLatency, v, lo, hi, &inside, 2.0));
     }
 }
