@@ -25,7 +25,7 @@ use crate::workloads::{self, TwinInput};
 /// Target (docs/performance.md): one AEKF step of the seed model, ns.
 pub const TARGET_SEED_STEP_NS: f64 = 250.0;
 /// Target (docs/performance.md): one AEKF step of the extended model, ns.
-pub const TARGET_EXTENDED_STEP_NS: f64 = 1000.0;
+pub const TARGET_EXTENDED_STEP_NS: f64 = 2000.0;
 /// Target (docs/performance.md): a 4-hour log analysed offline "in well under a second", s.
 pub const TARGET_LONG_LOG_S: f64 = 1.0;
 
@@ -305,11 +305,11 @@ impl Measurements<'_> {
         let t = kinetic.time(reps(101));
         rows.push(Row::judged(
             format!(
-                "AEKF step, extended model (OtterTwin: 8 states, 5 measurements, 2 losses; {}-step trial)",
+                "AEKF step, extended model (OtterTwin: 9 states, 6 measurements, 6 faults; {}-step trial)",
                 thousands(kinetic.steps.len() as u64)
             ),
             duration_text(t.ns_per_step_median),
-            "< 1 us",
+            "< 2 us",
             t.ns_per_step_median < TARGET_EXTENDED_STEP_NS,
         ));
         push_copies_row(rows, "extended", &kinetic.time_both_copies(reps(101)));
