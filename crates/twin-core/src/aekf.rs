@@ -443,6 +443,10 @@ where
             });
         }
         let f = tr.jacobian;
+        debug_assert!(
+            crate::linalg::within_pattern(&f, &Mdl::TRANSITION_PATTERN),
+            "the model's transition Jacobian has entries outside its TRANSITION_PATTERN"
+        );
         let psi = tr.fault_sensitivity;
         let x_bar = tr.next;
 
@@ -484,7 +488,7 @@ where
     /// `h_pattern`. On success the estimate is replaced; on error it is
     /// untouched.
     #[inline(always)]
-    #[allow(clippy::too_many_lines)] // Split by the estimator restructuring.
+    #[allow(clippy::too_many_lines)] // Steps 3-13 in order, as docs/model.md section 4 numbers them.
     fn update(
         &self,
         state: &mut AekfState<N, M, P>,
@@ -506,6 +510,10 @@ where
         // The measurement model at the predicted state, with missing
         // components masked.
         let mut h = obs.jacobian;
+        debug_assert!(
+            crate::linalg::within_pattern(&h, h_pattern),
+            "the model's observation Jacobian has entries outside its pattern"
+        );
         let mut r = state.measurement_noise;
         let angles = self.model.measurement_angles();
         let mut innovation = SVector::<f64, M>::zeros();

@@ -386,6 +386,15 @@ pub fn mirror_lower<const N: usize>(m: &mut SMatrix<f64, N, N>) {
     }
 }
 
+/// Whether `m` is zero wherever `pattern` says an entry is: what the
+/// sparse products trust of a model's Jacobians (checked in debug builds).
+pub fn within_pattern<const R: usize, const C: usize>(
+    m: &SMatrix<f64, R, C>,
+    pattern: &Pattern<R, C>,
+) -> bool {
+    (0..R).all(|r| (0..C).all(|c| pattern[r][c] || m[(r, c)] == 0.0))
+}
+
 /// Solves `L y = b` for lower-triangular `L`, column by column.
 /// (The tests' reference solve.)
 #[cfg(test)]
@@ -487,6 +496,10 @@ mod tests {
         assert!((sym - g * pm * g.transpose()).amax() < 1e-12);
         assert_eq!(sym, sym.transpose());
         assert!(diagonal::<3>()[1][1] && !diagonal::<3>()[0][1]);
+        // A Jacobian is checked against its declared pattern.
+        assert!(within_pattern(&c0, &pc));
+        assert!(!within_pattern(&c, &pc));
+        assert!(within_pattern(&c, &dense()));
     }
 
     proptest! {

@@ -326,7 +326,7 @@ impl<'a> Analyzer<'a> {
         Some((first.time_s + last.time_s) / 2.0)
     }
 
-    #[allow(clippy::too_many_lines)] // Split by the estimator restructuring.
+    #[allow(clippy::too_many_lines)] // Not yet split into steps.
     fn on_fix(&mut self, fix: &GnssFix) {
         let out = match self.twin.on_gnss(fix) {
             Ok(out) => out,
@@ -647,7 +647,7 @@ pub fn analyze_path(path: &Path, options: &AnalyzeOptions) -> Result<Analysis, A
 }
 
 /// Analyses a log from any reader; `name` is what the report calls it.
-#[allow(clippy::too_many_lines)] // Split by the estimator restructuring.
+#[allow(clippy::too_many_lines)] // Not yet split into steps.
 pub fn analyze_reader<R: BufRead>(
     input: R,
     name: &str,

@@ -26,7 +26,7 @@ impl Analysis {
     }
 
     /// The human summary.
-    #[allow(clippy::too_many_lines)] // Split by the estimator restructuring.
+    #[allow(clippy::too_many_lines)] // The summary's sections, in the order printed.
     pub fn to_text(&self) -> String {
         use std::fmt::Write;
         let mut s = String::new();
