@@ -1,6 +1,6 @@
 //! `twin-bridge bench`: how many NMEA 0183 sentences a second the bridge
 //! forwards on one core, from a UDP socket on loopback to Zenoh puts that
-//! a second session on loopback receives. The traffic is a boat at 10 Hz
+//! a second Zenoh peer on loopback receives. The traffic is a boat at 10 Hz
 //! (RMC, GGA, VTG, HDT and two RPM sentences an epoch), one sentence a
 //! datagram as a multiplexer sends them, as fast as the sender can. The
 //! rate is the sentences the bridge decoded divided by the time from its

@@ -349,24 +349,7 @@ impl KineticBase {
     /// `[north, east, sog, cog, heading, yaw rate]`; position always, the
     /// rest where measured, the course only above the gate's speed.
     pub fn measurement(&self, fix: &LocalFix) -> Measurement<MEASUREMENTS> {
-        Measurement {
-            values: SVector::<f64, MEASUREMENTS>::from([
-                fix.position.north_m,
-                fix.position.east_m,
-                fix.sog_mps.unwrap_or(0.0),
-                fix.cog_rad.unwrap_or(0.0),
-                fix.heading_rad.unwrap_or(0.0),
-                fix.yaw_rate_radps.unwrap_or(0.0),
-            ]),
-            available: [
-                true,
-                true,
-                fix.sog_mps.is_some(),
-                self.gate.course_available(fix),
-                fix.heading_rad.is_some(),
-                fix.yaw_rate_radps.is_some(),
-            ],
-        }
+        self.gate.measurement(fix, fix.yaw_rate_radps)
     }
 
     /// Puts what was learnt of the surroundings (the current, the heading

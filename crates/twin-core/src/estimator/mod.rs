@@ -86,6 +86,31 @@ impl CourseGate {
     pub fn course_available(&self, fix: &LocalFix) -> bool {
         fix.cog_rad.is_some() && fix.sog_mps.is_some_and(|s| s >= self.min_sog_mps)
     }
+
+    /// `[north, east, sog, cog, heading, extra]` from `fix`: position
+    /// always, the rest where measured, the course only above the gate's
+    /// speed; `extra` is the base's own sixth measurement (the yaw rate,
+    /// the speed through water), where the fix has it.
+    pub fn measurement(&self, fix: &LocalFix, extra: Option<f64>) -> crate::model::Measurement<6> {
+        crate::model::Measurement {
+            values: nalgebra::SVector::<f64, 6>::from([
+                fix.position.north_m,
+                fix.position.east_m,
+                fix.sog_mps.unwrap_or(0.0),
+                fix.cog_rad.unwrap_or(0.0),
+                fix.heading_rad.unwrap_or(0.0),
+                extra.unwrap_or(0.0),
+            ]),
+            available: [
+                true,
+                true,
+                fix.sog_mps.is_some(),
+                self.course_available(fix),
+                fix.heading_rad.is_some(),
+                extra.is_some(),
+            ],
+        }
+    }
 }
 
 /// What an estimator learnt about a vessel, to start a new estimate from:

@@ -87,24 +87,7 @@ impl WaterBase {
     /// `[north, east, sog, cog, heading, stw]`; position always, the rest
     /// where measured, the course only above the gate's speed.
     pub fn measurement(&self, fix: &LocalFix) -> Measurement<6> {
-        Measurement {
-            values: SVector::<f64, 6>::from_column_slice(&[
-                fix.position.north_m,
-                fix.position.east_m,
-                fix.sog_mps.unwrap_or(0.0),
-                fix.cog_rad.unwrap_or(0.0),
-                fix.heading_rad.unwrap_or(0.0),
-                fix.stw_mps.unwrap_or(0.0),
-            ]),
-            available: [
-                true,
-                true,
-                fix.sog_mps.is_some(),
-                self.gate.course_available(fix),
-                fix.heading_rad.is_some(),
-                fix.stw_mps.is_some(),
-            ],
-        }
+        self.gate.measurement(fix, fix.stw_mps)
     }
 
     /// The first estimate from a fix: position as measured; heading from the
