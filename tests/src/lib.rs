@@ -143,7 +143,12 @@ pub mod wire {
     /// The offline path over the same payloads: decode and feed a twin, as
     /// `twin analyze` does.
     pub fn offline(msgs: &[(&'static str, Vec<u8>)]) -> VesselTwin {
-        let mut twin = VesselTwin::new(TwinConfig::default()).expect("valid config");
+        offline_with(msgs, TwinConfig::default())
+    }
+
+    /// [`offline`] with the twin `config`.
+    pub fn offline_with(msgs: &[(&'static str, Vec<u8>)], config: TwinConfig) -> VesselTwin {
+        let mut twin = VesselTwin::new(config).expect("valid config");
         for (topic, bytes) in msgs {
             if *topic == "gnss" {
                 if let Ok(d) = decode_gnss(bytes) {

@@ -12,6 +12,7 @@
 
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
+use twin_wire::profile::VesselProfile;
 
 use twin_core::diagnose::{COMPONENTS, DiagnoseConfig};
 use twin_wire::SourceChoice;
@@ -57,7 +58,7 @@ pub fn diagnose_dir(
     })?;
     let mut out = Vec::new();
     for (name, path) in files {
-        match diagnose_path(&path, SourceChoice::Best, config) {
+        match diagnose_path(&path, SourceChoice::Best, config, &VesselProfile::otter()) {
             Ok(r) => out.push((name, LogOutcome::Diagnosed(Box::new(r)))),
             Err(DiagnoseError::TooShort { .. }) => out.push((name, LogOutcome::TooFewFixes)),
             Err(DiagnoseError::Log {

@@ -13,6 +13,7 @@ use std::hint::black_box;
 use std::io::BufReader;
 use std::path::PathBuf;
 use std::time::Duration;
+use twin_wire::profile::VesselProfile;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use twin_cli::diagnose::{LoadedLog, diagnose_loaded, load};
@@ -45,7 +46,8 @@ fn bench_diagnose(c: &mut Criterion) {
         };
         group.bench_function(name, |b| {
             b.iter(|| {
-                let r = diagnose_loaded(name, black_box(log), &config).expect("diagnosable");
+                let r = diagnose_loaded(name, black_box(log), &config, &VesselProfile::otter())
+                    .expect("diagnosable");
                 black_box(r.findings.len())
             })
         });

@@ -52,6 +52,7 @@ use twin_wire::{
 
 use crate::svg::{Figure, PALETTE, Style};
 use twin_wire::outputs::FindingJson;
+use twin_wire::profile::VesselProfile;
 
 /// Why a log cannot be diagnosed.
 #[derive(Debug, thiserror::Error)]
@@ -245,6 +246,8 @@ pub struct DiagnoseReport {
     pub schema: &'static str,
     /// The log.
     pub log: String,
+    /// The vessel profile the twin ran on, `name@fingerprint`.
+    pub profile: String,
     /// `kinetic` or `water`.
     pub base_model: &'static str,
     /// Steps.
@@ -275,14 +278,20 @@ pub fn diagnose_loaded(
     name: &str,
     log: &LoadedLog,
     config: &DiagnoseConfig,
+    profile: &VesselProfile,
 ) -> Result<DiagnoseReport, DiagnoseError> {
     let prep = prepare(&log.events).ok_or_else(|| DiagnoseError::TooShort {
         path: PathBuf::from(name),
     })?;
-    let d = diagnose(&prep, config);
+    let config = DiagnoseConfig {
+        twin: profile.twin_config(config.twin),
+        ..config.clone()
+    };
+    let d = diagnose(&prep, &config);
     Ok(DiagnoseReport {
         schema: "twin-diagnose/1",
         log: name.to_string(),
+        profile: profile.identity(),
         base_model: match d.base {
             BaseModel::Kinetic => "kinetic",
             BaseModel::Water => "water",
@@ -324,13 +333,14 @@ pub fn diagnose_path(
     path: &Path,
     source: SourceChoice,
     config: &DiagnoseConfig,
+    profile: &VesselProfile,
 ) -> Result<DiagnoseReport, DiagnoseError> {
     let file = File::open(path).map_err(|source| DiagnoseError::Open {
         path: path.to_path_buf(),
         source,
     })?;
     let log = load(BufReader::new(file), path, source)?;
-    diagnose_loaded(&path.display().to_string(), &log, config)
+    diagnose_loaded(&path.display().to_string(), &log, config, profile)
 }
 
 fn value_text(v: &serde_json::Value) -> String {
@@ -345,6 +355,7 @@ pub fn render_text(r: &DiagnoseReport) -> String {
     use std::fmt::Write;
     let mut o = String::new();
     let _ = writeln!(o, "twin diagnose {}", r.log);
+    let _ = writeln!(o, "profile: {}", r.profile);
     let _ = writeln!(
         o,
         "  model        {} ({}), {} steps: fitted on the first {}, judged on the last {}",

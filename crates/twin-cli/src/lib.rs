@@ -19,6 +19,7 @@
 pub mod analyze;
 pub mod demo;
 pub mod diagnose;
+pub mod identify;
 pub mod plots;
 pub mod quality;
 pub mod simulate;

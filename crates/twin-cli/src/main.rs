@@ -3,13 +3,15 @@
 //! `error: context: cause: ...`, with exit status 1.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
 use std::process::ExitCode;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use twin_cli::analyze::{AnalyzeOptions, analyze_path, load_truth, parse_source};
 use twin_cli::simulate::{OutputFormat, SimulateRequest, simulate_to_files};
+use twin_wire::profile::VesselProfile;
 
 /// The USV twin, offline: simulate trials, analyse and diagnose logs.
 #[derive(Debug, Parser)]
@@ -54,6 +56,9 @@ enum Command {
         /// A truth file (from `twin simulate --truth`) to score the estimates.
         #[arg(long)]
         truth: Option<PathBuf>,
+        /// The vessel's profile (TOML, docs/profiles.md); the Otter's by default.
+        #[arg(long, value_name = "FILE")]
+        profile: Option<PathBuf>,
     },
     /// Shows what the twin's model gets wrong on a log, names the cause,
     /// extends the model and measures the gain on held-out data.
@@ -69,7 +74,42 @@ enum Command {
         /// GNSS position source: best, an NMEA 2000 address, or an NMEA 0183 talker.
         #[arg(long, default_value = "best")]
         source: String,
+        /// The vessel's profile (TOML, docs/profiles.md); the Otter's by default.
+        #[arg(long, value_name = "FILE")]
+        profile: Option<PathBuf>,
     },
+    /// Fits a vessel profile's mass and damping from a trial of the healthy
+    /// vessel (steps of thrust, turns both ways; docs/identification.md),
+    /// reports each with its uncertainty and the held-out gain, and writes
+    /// the identified profile.
+    Identify {
+        /// The trial's log, with propeller speeds.
+        log: PathBuf,
+        /// The starting profile (TOML); the Otter's by default. Its thrust
+        /// coefficients set the force scale and are kept.
+        #[arg(long, value_name = "FILE")]
+        profile: Option<PathBuf>,
+        /// The identified profile's name.
+        #[arg(long, default_value = "identified")]
+        name: String,
+        /// Where to write the identified profile (default: NAME.toml).
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+        /// Print one JSON object (schema: twin_cli::identify) instead of text.
+        #[arg(long)]
+        json: bool,
+        /// GNSS position source: best, an NMEA 2000 address, or an NMEA 0183 talker.
+        #[arg(long, default_value = "best")]
+        source: String,
+    },
+}
+
+/// The profile at `path`, or the Otter's.
+fn load_profile(path: Option<&Path>) -> anyhow::Result<VesselProfile> {
+    match path {
+        Some(p) => VesselProfile::from_file(p).with_context(|| format!("profile {}", p.display())),
+        None => Ok(VesselProfile::otter()),
+    }
 }
 
 /// The diagnosis settings of the command line: the defaults, on every core.
@@ -111,52 +151,18 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             out,
             truth,
             format,
-        } => {
-            let format = format
-                .map(|f| f.parse::<OutputFormat>())
-                .transpose()
-                .context("--format")?;
-            let request = SimulateRequest {
-                scenario: scenario.clone(),
-                out: out.clone(),
-                format,
-                truth: truth.clone(),
-            };
-            let summary = simulate_to_files(&request)
-                .with_context(|| format!("simulating {}", scenario.display()))?;
-            eprintln!(
-                "wrote {} ({} lines: {} fixes, {} with heading, {} shaft-speed samples{}){}",
-                out.display(),
-                summary.lines,
-                summary.fixes,
-                summary.fixes_with_heading,
-                summary.propeller_samples,
-                if summary.fixes_without_course > 0 {
-                    format!(
-                        "; {} fixes without COG/SOG left out (JSON lines require them)",
-                        summary.fixes_without_course
-                    )
-                } else {
-                    String::new()
-                },
-                truth
-                    .map(|t| format!(
-                        " and {} ({} truth samples)",
-                        t.display(),
-                        summary.truth_samples
-                    ))
-                    .unwrap_or_default()
-            );
-        }
+        } => simulate(scenario, out, truth, format)?,
         Command::Analyze {
             log,
             json,
             plot,
             source,
             truth,
+            profile,
         } => {
             let mut options = AnalyzeOptions {
                 source: parse_source(&source)?,
+                profile: load_profile(profile.as_deref())?,
                 keep_series: plot.is_some(),
                 ..AnalyzeOptions::default()
             };
@@ -184,10 +190,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             json,
             plot,
             source,
+            profile,
         } => {
-            let report =
-                twin_cli::diagnose::diagnose_path(&log, parse_source(&source)?, &diagnose_config())
-                    .with_context(|| format!("diagnosing {}", log.display()))?;
+            let profile = load_profile(profile.as_deref())?;
+            let report = twin_cli::diagnose::diagnose_path(
+                &log,
+                parse_source(&source)?,
+                &diagnose_config(),
+                &profile,
+            )
+            .with_context(|| format!("diagnosing {}", log.display()))?;
             let mut stdout = std::io::stdout().lock();
             if json {
                 writeln!(stdout, "{}", serde_json::to_string_pretty(&report)?)?;
@@ -202,6 +214,90 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 }
             }
         }
+        Command::Identify {
+            log,
+            profile,
+            name,
+            out,
+            json,
+            source,
+        } => identify(&log, profile.as_deref(), &name, out, json, &source)?,
     }
+    Ok(())
+}
+
+/// `twin identify`: fits, writes the profile, reports.
+fn identify(
+    log: &Path,
+    profile: Option<&Path>,
+    name: &str,
+    out: Option<PathBuf>,
+    json: bool,
+    source: &str,
+) -> anyhow::Result<()> {
+    let start = load_profile(profile)?;
+    let config = twin_core::diagnose::IdentifyConfig::default();
+    let report =
+        twin_cli::identify::identify_path(log, parse_source(source)?, &start, name, &config)
+            .with_context(|| format!("identifying from {}", log.display()))?;
+    report
+        .identified
+        .validate()
+        .with_context(|| format!("the profile identified from {}", log.display()))?;
+    let out = out.unwrap_or_else(|| PathBuf::from(format!("{name}.toml")));
+    std::fs::write(&out, report.identified.to_toml())
+        .with_context(|| format!("writing {}", out.display()))?;
+    let mut stdout = std::io::stdout().lock();
+    if json {
+        writeln!(stdout, "{}", serde_json::to_string_pretty(&report)?)?;
+    } else {
+        write!(stdout, "{}", twin_cli::identify::render_text(&report))?;
+    }
+    eprintln!("wrote {}", out.display());
+    Ok(())
+}
+
+/// `twin simulate`: writes the log (and the truth), says what it wrote.
+fn simulate(
+    scenario: PathBuf,
+    out: PathBuf,
+    truth: Option<PathBuf>,
+    format: Option<String>,
+) -> anyhow::Result<()> {
+    let format = format
+        .map(|f| f.parse::<OutputFormat>())
+        .transpose()
+        .context("--format")?;
+    let request = SimulateRequest {
+        scenario: scenario.clone(),
+        out: out.clone(),
+        format,
+        truth: truth.clone(),
+    };
+    let summary = simulate_to_files(&request)
+        .with_context(|| format!("simulating {}", scenario.display()))?;
+    eprintln!(
+        "wrote {} ({} lines: {} fixes, {} with heading, {} shaft-speed samples{}){}",
+        out.display(),
+        summary.lines,
+        summary.fixes,
+        summary.fixes_with_heading,
+        summary.propeller_samples,
+        if summary.fixes_without_course > 0 {
+            format!(
+                "; {} fixes without COG/SOG left out (JSON lines require them)",
+                summary.fixes_without_course
+            )
+        } else {
+            String::new()
+        },
+        truth
+            .map(|t| format!(
+                " and {} ({} truth samples)",
+                t.display(),
+                summary.truth_samples
+            ))
+            .unwrap_or_default()
+    );
     Ok(())
 }

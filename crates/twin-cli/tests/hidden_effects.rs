@@ -10,6 +10,7 @@
 mod hidden;
 
 use hidden::{Hidden, judge};
+use twin_wire::profile::VesselProfile;
 
 use std::io::Cursor;
 use std::path::Path;
@@ -82,7 +83,13 @@ fn apply(sc: &mut Scenario, h: Hidden) {
 fn diagnose_scenario(sc: &Scenario, name: &str) -> DiagnoseReport {
     let (bytes, _) = simulate_to_bytes(sc, OutputFormat::JsonLines).unwrap();
     let log = load(Cursor::new(bytes), Path::new(name), SourceChoice::Best).unwrap();
-    diagnose_loaded(name, &log, &DiagnoseConfig::default()).unwrap()
+    diagnose_loaded(
+        name,
+        &log,
+        &DiagnoseConfig::default(),
+        &VesselProfile::otter(),
+    )
+    .unwrap()
 }
 
 #[test]

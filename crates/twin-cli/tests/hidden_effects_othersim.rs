@@ -33,6 +33,7 @@
 mod hidden;
 
 use hidden::{Hidden, judge};
+use twin_wire::profile::VesselProfile;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -191,7 +192,13 @@ fn simulate(effects: &[Hidden], seed: u64, dir: &Path, name: &str) -> PathBuf {
 }
 
 fn diagnose_log(log: &Path) -> DiagnoseReport {
-    diagnose_path(log, SourceChoice::Best, &DiagnoseConfig::default()).unwrap()
+    diagnose_path(
+        log,
+        SourceChoice::Best,
+        &DiagnoseConfig::default(),
+        &VesselProfile::otter(),
+    )
+    .unwrap()
 }
 
 /// The hidden effect in the table's words.

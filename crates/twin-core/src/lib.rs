@@ -6,7 +6,7 @@
 //! - [`model`]: the [`model::Model`] trait every vessel model implements.
 //! - [`models`]: the seed's kinematic model and the extended kinetic twins.
 //! - [`inputs`]: the seed's inputs derived from GNSS (differences, low-pass).
-//! - [`otter`]: the Otter's parameters and the seed's thrust split (step 4).
+//! - [`vessel`]: a vessel's parameters (the Otter by default) and the seed's thrust split (step 4).
 //! - [`linalg`]: small Cholesky factorisation and solves for the filter.
 //! - [`simd`]: which vector width this processor runs the filter's step at.
 //! - [`trig`]: the sine and cosine of a heading, inlined (the models' hot path).
@@ -34,11 +34,11 @@ pub mod inputs;
 mod linalg;
 pub mod model;
 pub mod models;
-pub mod otter;
 pub mod predict;
 pub mod sample;
 mod simd;
 mod trig;
 pub mod twin;
+pub mod vessel;
 
 pub use simd::avx2_available;

@@ -45,6 +45,7 @@ use crate::models::kinematic::KinematicInput;
 use crate::models::otter_twin::{FAULTS, MEASUREMENTS, STATES, ShaftSpeeds, fault, idx, meas};
 use crate::predict::{PredictedPoint, predict};
 use crate::sample::{GnssFix, PropellerSpeeds, Side};
+use crate::vessel::VesselParams;
 
 /// Why a measurement was not used. The estimate is unchanged after any.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
@@ -186,6 +187,32 @@ impl TwinConfig {
             kinetic: KineticConfig::identified(profile_sigma),
             ..Self::default()
         }
+    }
+
+    /// This twin's tuning for the vessel `params` describes
+    /// ([`KineticConfig::with_vessel`]).
+    pub fn with_vessel(mut self, params: VesselParams) -> Self {
+        self.kinetic = self.kinetic.with_vessel(params);
+        self
+    }
+
+    /// This twin for the vessel `params` describes, its profile's errors
+    /// known to `profile_sigma` (`None`: an unidentified profile, as the
+    /// default): [`KineticConfig::for_vessel`] with the velocities'
+    /// process noise of [`Self::default`] or [`Self::identified`].
+    pub fn for_vessel(params: VesselParams, profile_sigma: Option<[f64; 4]>) -> Self {
+        let twin = Self::default().with_vessel(params);
+        match profile_sigma {
+            Some(sigma) => twin.with_identified_profile(sigma),
+            None => twin,
+        }
+    }
+
+    /// This twin's tuning for a profile identified to `profile_sigma`
+    /// ([`KineticConfig::with_identified_profile`]).
+    pub fn with_identified_profile(mut self, profile_sigma: [f64; 4]) -> Self {
+        self.kinetic = self.kinetic.with_identified_profile(profile_sigma);
+        self
     }
 }
 

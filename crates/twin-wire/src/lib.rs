@@ -7,6 +7,8 @@
 //! - [`time`]: RFC 3339 and NMEA date/time fields to and from epoch seconds.
 //! - [`messages`]: the JSON input payloads (GNSS fix, actuators), their
 //!   validation into `twin_core` samples, and their encoders.
+//! - [`profile`]: vessel profiles (TOML): validation, and the estimator's
+//!   parameters from them.
 //! - [`outputs`]: the twin's output payloads (state, fault, prediction,
 //!   alarm, stats).
 //! - [`measurement`]: [`Record`], the typed, time-stamped SI measurement
@@ -29,6 +31,7 @@ pub mod keys;
 pub mod measurement;
 pub mod messages;
 pub mod outputs;
+pub mod profile;
 pub mod read;
 pub mod time;
 pub mod write;

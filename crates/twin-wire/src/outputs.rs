@@ -417,6 +417,10 @@ impl AlarmMessage {
 pub struct StatsMessage {
     /// Vessel id.
     pub vessel: String,
+    /// The vessel profile the twin runs on, `name@fingerprint`
+    /// (`twin_wire::profile::VesselProfile::identity`).
+    #[serde(default)]
+    pub profile: String,
     /// Messages received per input topic (`gnss`, `nmea`, `actuators`).
     #[serde(default)]
     pub received: BTreeMap<String, u64>,

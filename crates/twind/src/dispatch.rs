@@ -107,18 +107,21 @@ fn input_slot(topic: Topic) -> Option<usize> {
 }
 
 /// Whether `payload`, the first message of a vessel not yet admitted, on
-/// `topic`, is valid input: it decodes, a live one is stamped within the
-/// bounds of the daemon's clock, and a twin that has seen nothing takes it
-/// (a GNSS fix or shaft speeds), or at least one of its NMEA sentences
+/// `topic`, is valid input for the twin of its profile: it decodes, a
+/// live one is stamped within the bounds of the daemon's clock, and a twin
+/// that has seen nothing takes it (a GNSS fix or shaft speeds), or at
+/// least one of its NMEA sentences
 /// decodes. Costs a decode (and, for a well-formed message, a throwaway
 /// twin); keeps nothing.
 pub(crate) fn admissible(
     settings: &Settings,
+    vessel: &str,
     topic: Topic,
     payload: &[u8],
 ) -> Result<(), (&'static str, String)> {
+    let (twin_config, _) = settings.twin_for(vessel);
     let fresh = || {
-        VesselTwin::new(settings.twin)
+        VesselTwin::new(twin_config)
             .map_err(|e| ("estimator", format!("the twin's configuration: {e}")))
     };
     match topic {
@@ -134,7 +137,7 @@ pub(crate) fn admissible(
         Topic::Actuators => {
             let d = decode_actuators_limited(payload, settings.max_payload_bytes)
                 .map_err(|e| (e.reason(), e.to_string()))?;
-            let speeds = speeds_of(d.value, &settings.twin.kinetic.params);
+            let speeds = speeds_of(d.value, &twin_config.kinetic.params);
             check_live_time(&settings.live_time, d.replay, speeds.time_s)?;
             fresh()?
                 .on_propellers(&speeds)
@@ -355,7 +358,7 @@ impl Router {
             );
             return None;
         }
-        if let Err((reason, detail)) = admissible(&settings, topic, &payload.to_bytes()) {
+        if let Err((reason, detail)) = admissible(&settings, vessel, topic, &payload.to_bytes()) {
             self.refuse(vessel, reason, &format_args!("not admitted: {detail}"));
             return None;
         }

@@ -14,6 +14,14 @@
 //! an unknown version) is never overwritten: it is moved aside as
 //! `{vessel}.json.damaged-{n}` (the first `n` free) for a person to look
 //! at, and the vessel starts from scratch.
+//!
+//! A calibration names the vessel profile it was learnt with
+//! (`name@fingerprint`): what a twin learnt on one profile (the profile's
+//! errors above all) means nothing on another. A file learnt with another
+//! profile than the vessel's is not restored: it is moved aside as
+//! `{vessel}.json.other-profile-{n}` and the vessel starts a new
+//! calibration. A file without a profile was learnt before profiles
+//! existed, with the Otter's.
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -22,6 +30,7 @@ use serde::{Deserialize, Serialize};
 use twin_core::decision::{ThrusterDecision, ThrusterStatus};
 use twin_core::estimator::Surroundings;
 use twin_core::twin::{Calibration, FaultSource};
+use twin_wire::profile::VesselProfile;
 
 /// The file format (version 2).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -50,6 +59,9 @@ pub struct CalibrationFile {
     pub onset_time_s: [Option<f64>; 2],
     /// Time of the last fix learnt from, seconds since the epoch.
     pub time_s: f64,
+    /// The vessel profile it was learnt with, `name@fingerprint`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub profile: Option<String>,
 }
 
 /// The surroundings part of a calibration file.
@@ -82,6 +94,18 @@ pub enum PersistError {
         /// What is wrong.
         message: String,
     },
+    /// The file was learnt with another profile and has been moved aside.
+    #[error("{path}: learnt with profile {learnt_with}, not {current}; kept as {kept}")]
+    OtherProfile {
+        /// Where it was.
+        path: PathBuf,
+        /// Where it is now.
+        kept: PathBuf,
+        /// The profile it was learnt with.
+        learnt_with: String,
+        /// The vessel's profile now.
+        current: String,
+    },
     /// The file was not a calibration and has been moved aside.
     #[error("{path}: not a calibration file ({message}); kept as {kept}")]
     Damaged {
@@ -109,8 +133,8 @@ fn status_from(name: &str) -> Option<ThrusterStatus> {
 }
 
 impl CalibrationFile {
-    /// From the twin's calibration.
-    pub fn new(vessel: &str, c: &Calibration) -> Self {
+    /// From the twin's calibration, learnt with `profile`.
+    pub fn new(vessel: &str, c: &Calibration, profile: &str) -> Self {
         Self {
             version: 2,
             vessel: vessel.to_string(),
@@ -130,6 +154,7 @@ impl CalibrationFile {
             status: c.decisions.map(|d| status_name(d.status)),
             onset_time_s: c.decisions.map(|d| d.onset_time_s),
             time_s: c.time_s,
+            profile: Some(profile.to_owned()),
         }
     }
 
@@ -231,14 +256,20 @@ pub fn path_for(dir: &Path, vessel: &str) -> PathBuf {
     dir.join(format!("{vessel}.json"))
 }
 
-/// Saves atomically and durably (see the module doc).
-pub fn save(dir: &Path, vessel: &str, calibration: &Calibration) -> Result<(), PersistError> {
+/// Saves atomically and durably (see the module doc), as learnt with
+/// `profile`.
+pub fn save(
+    dir: &Path,
+    vessel: &str,
+    calibration: &Calibration,
+    profile: &str,
+) -> Result<(), PersistError> {
     let io = |path: &Path| {
         let path = path.to_path_buf();
         move |source| PersistError::Io { path, source }
     };
     std::fs::create_dir_all(dir).map_err(io(dir))?;
-    let file = CalibrationFile::new(vessel, calibration);
+    let file = CalibrationFile::new(vessel, calibration, profile);
     let text = serde_json::to_string_pretty(&file).map_err(|e| PersistError::Format {
         path: path_for(dir, vessel),
         message: e.to_string(),
@@ -258,9 +289,11 @@ pub fn save(dir: &Path, vessel: &str, calibration: &Calibration) -> Result<(), P
         .map_err(io(dir))
 }
 
-/// Loads the calibration of `vessel`, if there is one. A file that is not
-/// a calibration is moved aside ([`PersistError::Damaged`]).
-pub fn load(dir: &Path, vessel: &str) -> Result<Option<Calibration>, PersistError> {
+/// Loads the calibration of `vessel`, if there is one, for the profile
+/// `profile`. A file that is not a calibration is moved aside
+/// ([`PersistError::Damaged`]), and so is one learnt with another profile
+/// ([`PersistError::OtherProfile`]).
+pub fn load(dir: &Path, vessel: &str, profile: &str) -> Result<Option<Calibration>, PersistError> {
     let path = path_for(dir, vessel);
     let text = match std::fs::read(&path) {
         Ok(t) => t,
@@ -268,9 +301,18 @@ pub fn load(dir: &Path, vessel: &str) -> Result<Option<Calibration>, PersistErro
         Err(source) => return Err(PersistError::Io { path, source }),
     };
     match parse(&text, vessel) {
-        Ok(c) => Ok(Some(c)),
+        Ok((_, learnt_with)) if learnt_with != profile => {
+            let kept = move_aside(&path, "other-profile")?;
+            Err(PersistError::OtherProfile {
+                path,
+                kept,
+                learnt_with,
+                current: profile.to_owned(),
+            })
+        }
+        Ok((c, _)) => Ok(Some(c)),
         Err(message) => {
-            let kept = move_aside(&path)?;
+            let kept = move_aside(&path, "damaged")?;
             Err(PersistError::Damaged {
                 path,
                 kept,
@@ -280,17 +322,22 @@ pub fn load(dir: &Path, vessel: &str) -> Result<Option<Calibration>, PersistErro
     }
 }
 
-/// A calibration file's bytes, checked to be `vessel`'s calibration.
-fn parse(text: &[u8], vessel: &str) -> Result<Calibration, String> {
+/// A calibration file's bytes, checked to be `vessel`'s calibration, and
+/// the profile it was learnt with.
+fn parse(text: &[u8], vessel: &str) -> Result<(Calibration, String), String> {
     let file: CalibrationFile = serde_json::from_slice(text).map_err(|e| e.to_string())?;
     if file.vessel != vessel {
         return Err(format!("belongs to vessel {:?}", file.vessel));
     }
-    file.to_calibration()
+    let profile = file
+        .profile
+        .clone()
+        .unwrap_or_else(|| VesselProfile::otter().identity());
+    Ok((file.to_calibration()?, profile))
 }
 
-/// Renames `path` to the first free `{path}.damaged-{n}`, durably.
-fn move_aside(path: &Path) -> Result<PathBuf, PersistError> {
+/// Renames `path` to the first free `{path}.{why}-{n}`, durably.
+fn move_aside(path: &Path, why: &str) -> Result<PathBuf, PersistError> {
     let io = |p: &Path| {
         let p = p.to_path_buf();
         move |source| PersistError::Io { path: p, source }
@@ -298,7 +345,7 @@ fn move_aside(path: &Path) -> Result<PathBuf, PersistError> {
     let name = path.file_name().unwrap_or_default().to_string_lossy();
     let dir = path.parent().unwrap_or(Path::new("."));
     for n in 1..10_000 {
-        let aside = dir.join(format!("{name}.damaged-{n}"));
+        let aside = dir.join(format!("{name}.{why}-{n}"));
         if aside.exists() {
             continue;
         }
@@ -310,13 +357,16 @@ fn move_aside(path: &Path) -> Result<PathBuf, PersistError> {
     }
     Err(PersistError::Io {
         path: path.to_path_buf(),
-        source: std::io::Error::other("no free name to move the damaged file aside"),
+        source: std::io::Error::other(format!("no free name to move the {why} file aside")),
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    const OTTER: &str = "otter@0000000000000000";
+    const CATAMARAN: &str = "catamaran@1111111111111111";
 
     fn calibration() -> Calibration {
         Calibration {
@@ -351,9 +401,9 @@ mod tests {
     #[test]
     fn save_then_load_gives_the_same_calibration() {
         let dir = std::env::temp_dir().join(format!("twind-persist-{}", std::process::id()));
-        save(&dir, "otter-1", &calibration()).unwrap();
-        assert_eq!(load(&dir, "otter-1").unwrap(), Some(calibration()));
-        assert_eq!(load(&dir, "otter-2").unwrap(), None);
+        save(&dir, "otter-1", &calibration(), OTTER).unwrap();
+        assert_eq!(load(&dir, "otter-1", OTTER).unwrap(), Some(calibration()));
+        assert_eq!(load(&dir, "otter-2", OTTER).unwrap(), None);
         // No temporary file is left behind.
         let names: Vec<String> = std::fs::read_dir(&dir)
             .unwrap()
@@ -377,7 +427,7 @@ mod tests {
             .enumerate()
         {
             std::fs::write(&damaged, text).unwrap();
-            let err = load(&dir, "otter-3").unwrap_err();
+            let err = load(&dir, "otter-3", OTTER).unwrap_err();
             let kept = dir.join(format!("otter-3.json.damaged-{}", round + 1));
             assert!(
                 matches!(&err, PersistError::Damaged { kept: k, .. } if *k == kept),
@@ -386,9 +436,9 @@ mod tests {
             assert_eq!(std::fs::read_to_string(&kept).unwrap(), text);
             assert!(!damaged.exists());
             // Nothing there now: the vessel starts from scratch.
-            assert_eq!(load(&dir, "otter-3").unwrap(), None);
+            assert_eq!(load(&dir, "otter-3", OTTER).unwrap(), None);
         }
-        save(&dir, "otter-3", &calibration()).unwrap();
+        save(&dir, "otter-3", &calibration(), OTTER).unwrap();
         assert_eq!(
             std::fs::read_to_string(dir.join("otter-3.json.damaged-1")).unwrap(),
             "{not json"
@@ -396,17 +446,17 @@ mod tests {
         // A file renamed to another vessel is refused and kept aside too.
         std::fs::copy(path_for(&dir, "otter-3"), path_for(&dir, "otter-4")).unwrap();
         assert!(matches!(
-            load(&dir, "otter-4"),
+            load(&dir, "otter-4", OTTER),
             Err(PersistError::Damaged { .. })
         ));
         assert!(dir.join("otter-4.json.damaged-1").exists());
-        assert_eq!(load(&dir, "otter-3").unwrap(), Some(calibration()));
+        assert_eq!(load(&dir, "otter-3", OTTER).unwrap(), Some(calibration()));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
     fn a_broken_covariance_is_refused() {
-        let mut f = CalibrationFile::new("v", &calibration());
+        let mut f = CalibrationFile::new("v", &calibration(), OTTER);
         f.theta_covariance = vec![1e-4, 1.0, 1.0, 1e-4];
         f.theta = vec![0.1, 0.1];
         f.held_information = vec![1.0, 1.0];
@@ -417,5 +467,32 @@ mod tests {
         f.theta_covariance = vec![1e-4, 0.0, 0.0, 1e-4];
         f.held_information = vec![1.0];
         assert!(f.to_calibration().is_err());
+    }
+
+    /// A calibration learnt with one profile is not restored on another:
+    /// it is kept aside, and the vessel starts a new one; a file from
+    /// before profiles is the Otter's.
+    #[test]
+    fn a_calibration_of_another_profile_is_kept_aside_not_restored() {
+        let dir = std::env::temp_dir().join(format!("twind-profile-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        save(&dir, "cat-1", &calibration(), CATAMARAN).unwrap();
+        let err = load(&dir, "cat-1", OTTER).unwrap_err();
+        let kept = dir.join("cat-1.json.other-profile-1");
+        assert!(
+            matches!(&err, PersistError::OtherProfile { kept: k, learnt_with, .. }
+                if *k == kept && learnt_with == CATAMARAN),
+            "{err}"
+        );
+        assert_eq!(load(&dir, "cat-1", OTTER).unwrap(), None);
+        std::fs::rename(&kept, path_for(&dir, "cat-1")).unwrap();
+        assert_eq!(load(&dir, "cat-1", CATAMARAN).unwrap(), Some(calibration()));
+        // Without a profile: learnt with the Otter's.
+        let mut file = CalibrationFile::new("old-1", &calibration(), OTTER);
+        file.profile = None;
+        std::fs::write(path_for(&dir, "old-1"), serde_json::to_vec(&file).unwrap()).unwrap();
+        let otter = VesselProfile::otter().identity();
+        assert_eq!(load(&dir, "old-1", &otter).unwrap(), Some(calibration()));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

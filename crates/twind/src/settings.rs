@@ -4,12 +4,15 @@
 //! Every validation error names the bad key. Zenoh's settings stay in Zenoh's
 //! own JSON5 file (`config/zenoh.json5`).
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use serde::Deserialize;
 use twin_core::diagnose::MonitorConfig;
 use twin_core::twin::TwinConfig;
 use twin_wire::KeySpace;
+use twin_wire::profile::VesselProfile;
 
 /// Why the settings cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -61,6 +64,23 @@ struct RawSettings {
     diagnose: RawDiagnose,
     #[serde(default)]
     daemon: RawDaemon,
+    #[serde(default)]
+    profiles: RawProfiles,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawProfiles {
+    files: Option<Vec<PathBuf>>,
+    default: Option<String>,
+    vessels: Option<Vec<RawProfileRule>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawProfileRule {
+    id: String,
+    profile: String,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -275,6 +295,55 @@ pub struct Settings {
     pub twin: TwinConfig,
     /// The live residual monitor.
     pub diagnose: DiagnoseSettings,
+    /// Vessel profiles, and which vessel uses which.
+    pub profiles: ProfileSettings,
+}
+
+/// The vessel profiles a daemon knows, and which vessel runs on which.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProfileSettings {
+    /// Every profile by name: the shipped Otter's and those of
+    /// `[profiles] files`, each validated.
+    pub by_name: BTreeMap<String, Arc<VesselProfile>>,
+    /// `(vessel id or pattern, profile name)`, in the file's order: the
+    /// first that matches a vessel's id wins (`*` matches any run of
+    /// characters).
+    pub rules: Vec<(String, String)>,
+    /// The profile of a vessel no rule matches.
+    pub default: String,
+}
+
+impl ProfileSettings {
+    /// The profile vessel `id` runs on.
+    pub fn for_vessel(&self, id: &str) -> &Arc<VesselProfile> {
+        let name = self
+            .rules
+            .iter()
+            .find(|(pattern, _)| id_matches(pattern, id))
+            .map_or(&self.default, |(_, name)| name);
+        &self.by_name[name]
+    }
+}
+
+/// Whether `id` matches `pattern`, where `*` matches any run of
+/// characters (none included) and every other character itself.
+fn id_matches(pattern: &str, id: &str) -> bool {
+    let mut parts = pattern.split('*');
+    let first = parts.next().unwrap_or("");
+    let Some(mut rest) = id.strip_prefix(first) else {
+        return false;
+    };
+    let parts: Vec<&str> = parts.collect();
+    let Some((last, middle)) = parts.split_last() else {
+        return rest.is_empty();
+    };
+    for part in middle {
+        match rest.find(part) {
+            Some(at) => rest = &rest[at + part.len()..],
+            None => return false,
+        }
+    }
+    rest.len() >= last.len() && rest.ends_with(last)
 }
 
 impl Default for Settings {
@@ -337,13 +406,21 @@ fn fraction(key: &'static str, v: f64) -> Result<f64, SettingsError> {
 }
 
 impl Settings {
+    /// The twin and profile vessel `id` runs on: the `[twin]` tuning for
+    /// the vessel its profile describes.
+    pub fn twin_for(&self, id: &str) -> (TwinConfig, Arc<VesselProfile>) {
+        let profile = self.profiles.for_vessel(id);
+        (profile.twin_config(self.twin), Arc::clone(profile))
+    }
+
     /// Reads and validates a settings file.
     pub fn from_file(path: &Path) -> Result<Self, SettingsError> {
         let text = std::fs::read_to_string(path).map_err(|source| SettingsError::Io {
             path: path.to_path_buf(),
             source,
         })?;
-        Self::from_toml(&text).map_err(|e| match e {
+        let base = path.parent().unwrap_or(Path::new("."));
+        Self::from_toml_in(&text, base).map_err(|e| match e {
             SettingsError::Parse { message, .. } => SettingsError::Parse {
                 path: path.to_path_buf(),
                 message,
@@ -352,12 +429,26 @@ impl Settings {
         })
     }
 
-    /// Parses and validates settings from TOML text.
+    /// Parses and validates settings from TOML text (profile files
+    /// relative to the working directory).
     pub fn from_toml(text: &str) -> Result<Self, SettingsError> {
-        let raw: RawSettings = toml::from_str(text).map_err(|e| SettingsError::Parse {
+        Self::from_toml_in(text, Path::new("."))
+    }
+
+    /// Parses and validates settings from TOML text, profile files
+    /// relative to `base`.
+    fn from_toml_in(text: &str, base: &Path) -> Result<Self, SettingsError> {
+        let mut raw: RawSettings = toml::from_str(text).map_err(|e| SettingsError::Parse {
             path: PathBuf::from("<settings>"),
             message: e.to_string(),
         })?;
+        if let Some(files) = &mut raw.profiles.files {
+            for file in files.iter_mut() {
+                if file.is_relative() {
+                    *file = base.join(&*file);
+                }
+            }
+        }
         Self::from_raw(raw)
     }
 
@@ -422,6 +513,7 @@ impl Settings {
         }
         let twin = twin_config(&raw.twin)?;
         let diagnose = diagnose_settings(&raw.diagnose)?;
+        let profiles = profile_settings(raw.profiles)?;
         Ok(Self {
             keys,
             vessels,
@@ -433,8 +525,66 @@ impl Settings {
             web,
             twin,
             diagnose,
+            profiles,
         })
     }
+}
+
+/// `[profiles]`: every file read and validated, every name used defined.
+fn profile_settings(raw: RawProfiles) -> Result<ProfileSettings, SettingsError> {
+    let otter = VesselProfile::otter();
+    let mut by_name = BTreeMap::from([(otter.name.clone(), Arc::new(otter))]);
+    for path in raw.files.unwrap_or_default() {
+        let profile = VesselProfile::from_file(&path).map_err(|e| SettingsError::Invalid {
+            key: "profiles.files",
+            reason: format!("{}: {e}", path.display()),
+        })?;
+        if by_name.contains_key(&profile.name) {
+            return Err(SettingsError::Invalid {
+                key: "profiles.files",
+                reason: format!(
+                    "{}: a profile named {:?} is already defined",
+                    path.display(),
+                    profile.name
+                ),
+            });
+        }
+        by_name.insert(profile.name.clone(), Arc::new(profile));
+    }
+    let known = |key: &'static str, name: &str| {
+        if by_name.contains_key(name) {
+            Ok(())
+        } else {
+            Err(SettingsError::Invalid {
+                key,
+                reason: format!(
+                    "no profile named {name:?} (defined: {})",
+                    by_name.keys().cloned().collect::<Vec<_>>().join(", ")
+                ),
+            })
+        }
+    };
+    let default = raw.default.unwrap_or_else(|| "otter".to_owned());
+    known("profiles.default", &default)?;
+    let mut rules = Vec::new();
+    for rule in raw.vessels.unwrap_or_default() {
+        let literal = rule.id.replace('*', "");
+        if rule.id.is_empty()
+            || (!literal.is_empty() && twin_wire::keys::validate_vessel_id(&literal).is_err())
+        {
+            return Err(SettingsError::Invalid {
+                key: "profiles.vessels",
+                reason: format!("{:?} is not a vessel id or a pattern of one", rule.id),
+            });
+        }
+        known("profiles.vessels", &rule.profile)?;
+        rules.push((rule.id, rule.profile));
+    }
+    Ok(ProfileSettings {
+        by_name,
+        rules,
+        default,
+    })
 }
 
 /// `[vessels]`, validated.
@@ -712,5 +862,99 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("stale_after_s"), "{err}");
+    }
+
+    /// A profile file in a fresh directory: the Otter's with `name`, and
+    /// `key = value` replaced.
+    fn profile_file(dir: &Path, name: &str, key: &str, value: &str) -> PathBuf {
+        let text = twin_wire::profile::OTTER_PROFILE_TOML
+            .lines()
+            .map(|l| match l.split('=').next().map(str::trim) {
+                Some("name") => format!("name = \"{name}\""),
+                Some(k) if k == key => format!("{key} = {value}"),
+                _ => l.to_owned(),
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+        std::fs::create_dir_all(dir).unwrap();
+        let path = dir.join(format!("{name}.toml"));
+        std::fs::write(&path, text).unwrap();
+        path
+    }
+
+    /// Vessels map to profiles by id, then by pattern, then the default;
+    /// relative profile paths are the settings file's.
+    #[test]
+    fn vessels_run_on_the_profiles_their_rules_name() {
+        let dir = std::env::temp_dir().join(format!("twind-profiles-{}", std::process::id()));
+        profile_file(&dir.join("profiles"), "cat", "mass_kg", "160.0");
+        let settings_path = dir.join("twind.toml");
+        std::fs::write(
+            &settings_path,
+            "[profiles]\nfiles = [\"profiles/cat.toml\"]\nvessels = [\n  \
+             { id = \"survey-7\", profile = \"otter\" },\n  \
+             { id = \"survey-*\", profile = \"cat\" },\n]\n",
+        )
+        .unwrap();
+        let settings = Settings::from_file(&settings_path).unwrap();
+        let name = |id: &str| settings.profiles.for_vessel(id).name.clone();
+        assert_eq!(name("survey-7"), "otter");
+        assert_eq!(name("survey-12"), "cat");
+        assert_eq!(name("otter-1"), "otter");
+        let (config, profile) = settings.twin_for("survey-3");
+        assert_eq!(config.kinetic.params.mass_kg, 160.0);
+        assert_eq!(profile.name, "cat");
+        // The settings' tuning is kept on the vessel's profile.
+        assert_eq!(config.decision, settings.twin.decision);
+        assert_eq!(settings.twin_for("otter-1").0, settings.twin);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn id_patterns_match_as_globs() {
+        assert!(id_matches("survey-*", "survey-12"));
+        assert!(id_matches("*-b", "a-b"));
+        assert!(id_matches("a*c*e", "abcde"));
+        assert!(!id_matches("a*c*e", "abcdf"));
+        assert!(!id_matches("survey-*", "north-survey-1"));
+        assert!(id_matches("otter-1", "otter-1"));
+        assert!(!id_matches("otter-1", "otter-12"));
+        assert!(!id_matches("ab*ba", "aba"));
+    }
+
+    /// A profile the daemon cannot use stops it at start, with the file
+    /// and the profile's key named.
+    #[test]
+    fn a_bad_profile_or_an_unknown_name_is_refused_at_start() {
+        let dir = std::env::temp_dir().join(format!("twind-bad-profiles-{}", std::process::id()));
+        let cases = [
+            ("mass_kg", "-5.0", "mass.mass_kg"),
+            ("lateral_offset_m", "0.0", "propellers.lateral_offset_m"),
+            ("mass_kg", "80.0\nmass_lb = 176.0", "mass_lb"),
+        ];
+        for (key, value, named) in cases {
+            let path = profile_file(&dir, "bad", key, value);
+            let text = format!("[profiles]\nfiles = [{:?}]\n", path.display().to_string());
+            let err = Settings::from_toml(&text).unwrap_err().to_string();
+            assert!(
+                err.contains("profiles.files") && err.contains(named),
+                "{err}"
+            );
+            assert!(err.contains("bad.toml"), "{err}");
+        }
+        let missing = "[profiles]\nfiles = [\"/nonexistent/cat.toml\"]\n";
+        let err = Settings::from_toml(missing).unwrap_err().to_string();
+        assert!(err.contains("cannot read"), "{err}");
+        let err = Settings::from_toml("[profiles]\ndefault = \"cat\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("profiles.default") && err.contains("\"cat\""),
+            "{err}"
+        );
+        let rule = "[profiles]\nvessels = [{ id = \"x-*\", profile = \"cat\" }]\n";
+        let err = Settings::from_toml(rule).unwrap_err().to_string();
+        assert!(err.contains("profiles.vessels"), "{err}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -32,9 +32,9 @@ use twin_core::decision::StatusChange;
 use twin_core::diagnose::{
     BaseModel, DiagEvent, DiagnoseConfig, LiveMonitor, Trigger, diagnose, prepare,
 };
-use twin_core::otter::OtterParams;
 use twin_core::sample::{GnssFix, PropellerSpeeds};
-use twin_core::twin::{Rejection, StepOutput, VesselTwin};
+use twin_core::twin::{Rejection, StepOutput, TwinConfig, VesselTwin};
+use twin_core::vessel::VesselParams;
 use twin_wire::assemble::{Assembled, AssemblerConfig, FixAssembler};
 use twin_wire::measurement::Measurement;
 use twin_wire::measurement::ThrustCommand;
@@ -43,6 +43,7 @@ use twin_wire::outputs::{
     AlarmMessage, FaultMessage, FindingJson, FindingsMessage, StateMessage, StatsMessage,
     payload_time,
 };
+use twin_wire::profile::VesselProfile;
 use twin_wire::read::{NmeaDecoder, ReadOptions};
 use twin_wire::{Topic, VesselId};
 use zenoh::bytes::Encoding;
@@ -163,6 +164,10 @@ impl VesselKeys {
 pub struct VesselTask {
     id: VesselId,
     settings: Arc<Settings>,
+    /// The twin's configuration for this vessel's profile.
+    twin_config: TwinConfig,
+    /// The profile the vessel runs on.
+    profile: Arc<VesselProfile>,
     session: Session,
     /// The daemon's latest states...
     latest: LatestStates,
@@ -294,10 +299,11 @@ impl VesselTask {
             load,
             save_failures,
         } = shared.clone();
+        let (twin_config, profile) = settings.twin_for(id.as_str());
         let mut twin =
-            VesselTwin::new(settings.twin).expect("the settings' twin configuration was validated");
+            VesselTwin::new(twin_config).expect("the settings' twin configuration was validated");
         if let Some(dir) = &settings.persistence.dir {
-            match persist::load(dir, id.as_str()) {
+            match persist::load(dir, id.as_str(), &profile.identity()) {
                 Ok(Some(calibration)) => {
                     tracing::info!(vessel = id.as_str(), theta = ?calibration.theta, "calibration restored");
                     twin.restore(calibration);
@@ -318,6 +324,8 @@ impl VesselTask {
         Self {
             id,
             settings,
+            twin_config,
+            profile,
             session,
             latest,
             latest_slot: OnceLock::new(),
@@ -500,7 +508,7 @@ impl VesselTask {
             return;
         };
         if let Some(c) = self.twin.calibration() {
-            match persist::save(dir, self.id.as_str(), &c) {
+            match persist::save(dir, self.id.as_str(), &c, &self.profile.identity()) {
                 Ok(()) => self.unsaved = false,
                 Err(e) => self.save_failures.failed(self.id.as_str(), &e),
             }
@@ -546,7 +554,7 @@ impl VesselTask {
                     Ok(d) => d,
                     Err(e) => return self.counters.reject(who, e.reason(), &e),
                 };
-                let speeds = speeds_of(d.value, &self.settings.twin.kinetic.params);
+                let speeds = speeds_of(d.value, &self.twin_config.kinetic.params);
                 if let Err((reason, detail)) =
                     check_live_time(&self.settings.live_time, d.replay, speeds.time_s)
                 {
@@ -629,7 +637,7 @@ impl VesselTask {
                 Assembled::Propellers(s) => self.on_nmea_propellers(s),
                 Assembled::Thrust(t) => self.on_nmea_propellers(speeds_of(
                     ActuatorCommand::Thrust(t),
-                    &self.settings.twin.kinetic.params,
+                    &self.twin_config.kinetic.params,
                 )),
             }
         }
@@ -692,9 +700,9 @@ impl VesselTask {
         let events = monitor.start(fix.time_s);
         let config = DiagnoseConfig {
             threads: 1,
-            twin: twin_core::twin::TwinConfig {
-                kinetic: self.settings.twin.kinetic.for_search(),
-                ..self.settings.twin
+            twin: TwinConfig {
+                kinetic: self.twin_config.kinetic.for_search(),
+                ..self.twin_config
             },
             ..DiagnoseConfig::default()
         };
@@ -907,6 +915,7 @@ impl VesselTask {
     pub fn stats_message(&self) -> StatsMessage {
         StatsMessage {
             vessel: self.id.as_str().to_string(),
+            profile: self.profile.identity(),
             received: self.counters.received(),
             accepted: self.counters.accepted(),
             rejected: self.counters.rejected.clone(),
@@ -963,7 +972,7 @@ pub(crate) fn check_live_time(
 
 /// An actuator command as shaft speeds (a thrust through the Otter's
 /// propeller curve).
-pub(crate) fn speeds_of(command: ActuatorCommand, params: &OtterParams) -> PropellerSpeeds {
+pub(crate) fn speeds_of(command: ActuatorCommand, params: &VesselParams) -> PropellerSpeeds {
     match command {
         ActuatorCommand::Speeds(s) => s,
         ActuatorCommand::Thrust(ThrustCommand {

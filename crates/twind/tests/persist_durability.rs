@@ -17,6 +17,8 @@ use twin_core::twin::{Calibration, FaultSource};
 
 /// Set in the child: the directory to save into.
 const CHILD_DIR: &str = "TWIND_DURABILITY_CHILD_DIR";
+/// The profile the calibrations are learnt with.
+const OTTER: &str = "otter@0000000000000000";
 
 fn calibration() -> Calibration {
     Calibration {
@@ -43,14 +45,14 @@ fn calibration() -> Calibration {
 fn a_save_flushes_the_file_before_the_rename_and_the_directory_after() {
     if let Ok(dir) = std::env::var(CHILD_DIR) {
         // The child: one save, traced by the parent's strace.
-        twind::persist::save(std::path::Path::new(&dir), "otter-1", &calibration()).unwrap();
+        twind::persist::save(std::path::Path::new(&dir), "otter-1", &calibration(), OTTER).unwrap();
         return;
     }
     let dir = std::env::temp_dir().join(format!("twind-durability-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     // A calibration already there, as after an earlier save.
-    twind::persist::save(&dir, "otter-1", &calibration()).unwrap();
+    twind::persist::save(&dir, "otter-1", &calibration(), OTTER).unwrap();
     let trace = dir.join("strace.log");
     let exe = std::env::current_exe().unwrap();
     let status = Command::new("strace")
@@ -101,7 +103,7 @@ fn a_save_flushes_the_file_before_the_rename_and_the_directory_after() {
         file_synced < renamed && renamed < dir_synced,
         "order: file flushed {file_synced}, renamed {renamed}, directory flushed {dir_synced}"
     );
-    let saved = twind::persist::load(&dir, "otter-1").unwrap();
+    let saved = twind::persist::load(&dir, "otter-1", OTTER).unwrap();
     assert_eq!(saved, Some(calibration()));
     std::fs::remove_dir_all(&dir).unwrap();
 }

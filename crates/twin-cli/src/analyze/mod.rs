@@ -93,6 +93,7 @@ use twin_core::twin::{
 };
 use twin_wire::assemble::{Assembled, AssemblerConfig, FixAssembler, SourceChoice};
 use twin_wire::measurement::{Source, Talker};
+use twin_wire::profile::VesselProfile;
 use twin_wire::read::{LogFormat, LogReader, OpenError, ReadOptions};
 use twin_wire::time::format_rfc3339;
 
@@ -181,8 +182,11 @@ pub fn parse_source(text: &str) -> Result<SourceChoice, AnalyzeError> {
 pub struct AnalyzeOptions {
     /// Which GNSS source gives positions.
     pub source: SourceChoice,
-    /// The twin's configuration.
+    /// The twin's tuning ...
     pub config: TwinConfig,
+    /// ... for the vessel this profile describes
+    /// ([`VesselProfile::twin_config`]).
+    pub profile: VesselProfile,
     /// The readers' options.
     pub read: ReadOptions,
     /// The truth to compare with, if any (sorted by time).
@@ -196,6 +200,7 @@ impl Default for AnalyzeOptions {
         Self {
             source: SourceChoice::Best,
             config: TwinConfig::default(),
+            profile: VesselProfile::otter(),
             read: ReadOptions::default(),
             truth: None,
             keep_series: false,
@@ -281,7 +286,7 @@ impl<'a> Analyzer<'a> {
     fn new(options: &'a AnalyzeOptions) -> Result<Self, AnalyzeError> {
         Ok(Self {
             options,
-            twin: VesselTwin::new(options.config)?,
+            twin: VesselTwin::new(options.profile.twin_config(options.config))?,
             first_s: None,
             last_s: f64::NAN,
             samples: SamplesByKind::default(),
@@ -808,6 +813,7 @@ pub fn analyze_reader<R: BufRead>(
     Ok(Analysis {
         schema: SCHEMA,
         log: name.to_string(),
+        profile: options.profile.identity(),
         format: format_name(format),
         span,
         sources: sources(format, &assembled, position, course, heading),

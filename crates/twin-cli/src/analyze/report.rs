@@ -414,6 +414,8 @@ pub struct Analysis {
     pub schema: &'static str,
     /// The log, as given.
     pub log: String,
+    /// The vessel profile the twin ran on, `name@fingerprint`.
+    pub profile: String,
     /// `nmea0183`, `n2k` or `json_lines`.
     pub format: &'static str,
     /// Span of the records.

@@ -32,6 +32,7 @@ impl Analysis {
         let mut s = String::new();
         let w = &mut s;
         let _ = writeln!(w, "twin analyze {}", self.log);
+        let _ = writeln!(w, "  profile      {}", self.profile);
         let _ = writeln!(w, "  format       {}", format_title(self.format));
         match &self.span {
             Some(sp) => {

@@ -246,7 +246,7 @@ pub(super) struct Hypothesis {
 }
 
 impl Hypothesis {
-    fn nominal() -> Self {
+    pub(super) fn nominal() -> Self {
         Self {
             current: Term::Off,
             loss: Term::Off,
@@ -294,7 +294,7 @@ impl Ctx<'_> {
 /// Minimises `f` on `[lo, hi]`: a grid, then golden-section search around
 /// the best grid point. Returns the minimiser and the curvature-based
 /// standard deviation `1 / sqrt(f'')` (the likelihood's Fisher information).
-fn minimise_1d(f: &dyn Fn(f64) -> f64, lo: f64, hi: f64, grid: usize) -> (f64, f64) {
+pub(super) fn minimise_1d(f: &dyn Fn(f64) -> f64, lo: f64, hi: f64, grid: usize) -> (f64, f64) {
     let step = (hi - lo) / grid as f64;
     let mut best = (lo, f(lo));
     for i in 1..=grid {

@@ -37,6 +37,9 @@
 //! 7. **Live** ([`LiveMonitor`]): the daemon keeps the recent past per
 //!    vessel and diagnoses it on an interval, or earlier when the live twin's
 //!    innovations turn biased.
+//! 8. **Identification** ([`identify()`]): a vessel profile's mass and damping
+//!    from a trial of the healthy vessel, on the same passes and the same
+//!    held-out judging.
 //!
 //! Pure like the rest of the crate: the log comes in as values; nothing is
 //! read, no clock is used. The truth of a simulated log is never an input.
@@ -46,6 +49,7 @@
 #![allow(clippy::needless_range_loop)]
 
 mod fit;
+mod identify;
 mod monitor;
 mod pass;
 mod prepare;
@@ -53,6 +57,9 @@ mod residuals;
 
 pub use fit::{
     Acceptance, BaseModel, Cause, DiagnoseConfig, Diagnosis, Finding, Gain, Rejected, diagnose,
+};
+pub use identify::{
+    HeldOut, IDENTIFIED_PARAMETERS, Identification, IdentifyConfig, ParameterEstimate, identify,
 };
 pub use monitor::{BIAS_BATCHES, LiveMonitor, MonitorConfig, Trigger};
 pub use prepare::{DiagEvent, Prepared, prepare};

@@ -9,7 +9,7 @@
 //! balance measures even when the losses' common part cannot be told from
 //! the hull's drag.
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 use super::{CourseGate, Learnt, LocalFix, Surroundings};
 use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
@@ -18,8 +18,8 @@ use crate::models::effects::SensorEffects;
 use crate::models::otter_twin::{
     FAULTS, Faults, MEASUREMENTS, OtterTwin, STATES, ShaftSpeeds, State, fault, idx, meas,
 };
-use crate::otter::OtterParams;
 use crate::sample::PropellerSpeeds;
+use crate::vessel::VesselParams;
 
 /// The kinetic base's filter.
 pub type KineticFilter = Aekf<OtterTwin, STATES, MEASUREMENTS, FAULTS>;
@@ -32,7 +32,7 @@ pub type KineticReport = StepReport<MEASUREMENTS, FAULTS>;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KineticConfig {
     /// The vessel's parameters.
-    pub params: OtterParams,
+    pub params: VesselParams,
     /// The filter's tuning.
     pub filter: AekfConfig<STATES, MEASUREMENTS, FAULTS>,
     /// Initial standard deviation of the water current estimate, m/s.
@@ -47,6 +47,9 @@ pub struct KineticConfig {
     /// uncalibrated profile is uncertain by some 25 %; one identified from a
     /// trial by what the identification says.
     pub profile_sigma: [f64; 4],
+    /// How many times the harbour water's random forces the velocities'
+    /// process noise allows (see [`Self::otter_with`]).
+    pub unmodelled_force_factor: f64,
     /// Propeller data older than this stop the extended twin, s.
     pub max_propeller_age_s: f64,
     /// A propeller's loss counts as excited while the data pin it down to
@@ -82,7 +85,7 @@ impl KineticConfig {
     /// simulator's default disturbance, `twin_sim::DisturbanceSpec`); the
     /// current and the heading sensor's offset drift slowly.
     pub fn otter() -> Self {
-        Self::otter_with(UNMODELLED_FORCE_FACTOR)
+        Self::otter_with(Self::UNMODELLED_FORCE_FACTOR)
     }
 
     /// The Otter whose profile was identified from a trial of this very
@@ -100,7 +103,8 @@ impl KineticConfig {
     /// harbour water alone ([`Self::otter_with`] 1), for a search of what
     /// the model lacks: its misfit must show in the residuals.
     pub fn for_search(mut self) -> Self {
-        self.filter.process_noise_density = Self::otter_with(1.0).filter.process_noise_density;
+        self.unmodelled_force_factor = 1.0;
+        self.set_velocity_noise();
         self
     }
 
@@ -143,7 +147,7 @@ impl KineticConfig {
         ]);
         let profile_sigma = [0.25, 0.25, 0.25, 0.25];
         Self {
-            params: OtterParams::default(),
+            params: VesselParams::default(),
             filter: AekfConfig {
                 process_noise_density: q,
                 measurement_noise: SMatrix::from_diagonal(&r),
@@ -167,6 +171,7 @@ impl KineticConfig {
             estimate_current: true,
             initial_heading_bias_sigma_rad: 10f64.to_radians(),
             profile_sigma,
+            unmodelled_force_factor: f,
             max_propeller_age_s: 1.0,
             excitation_sigma: 0.1,
             relative_excitation_sigma: 0.05,
@@ -176,12 +181,92 @@ impl KineticConfig {
     }
 }
 
-/// How many times the harbour water's random forces the velocities' process
-/// noise allows: the rest is the part of the vessel's motion its profile
-/// does not model (a vessel whose mass, damping and thrust are each 20-30 %
-/// off its profile, the trust matrix in `tests/src/trust.rs`), which the
-/// filter must take as noise rather than pin on the losses.
-const UNMODELLED_FORCE_FACTOR: f64 = 5.0;
+impl KineticConfig {
+    /// How many times the harbour water's random forces the velocities'
+    /// process noise allows in an unidentified profile: the rest is the
+    /// part of the vessel's motion its profile does not model (a vessel
+    /// whose mass, damping and thrust are each 20-30 % off its profile, the
+    /// trust matrix in `tests/src/trust.rs`), which the filter must take as
+    /// noise rather than pin on the losses.
+    pub const UNMODELLED_FORCE_FACTOR: f64 = 5.0;
+
+    /// [`Self::otter_with`] for the vessel `params` describes: its
+    /// parameters, and the velocities' process noise of harbour water on a
+    /// hull of its size ([`harbour_velocity_noise`]).
+    pub fn for_vessel(params: VesselParams, unmodelled_force_factor: f64) -> Self {
+        Self::otter_with(unmodelled_force_factor).with_vessel(params)
+    }
+
+    /// This configuration for the vessel `params` describes, its other
+    /// tuning kept: the parameters, and the velocities' process noise of
+    /// harbour water on that hull times [`Self::unmodelled_force_factor`].
+    pub fn with_vessel(mut self, params: VesselParams) -> Self {
+        self.params = params;
+        self.set_velocity_noise();
+        self
+    }
+
+    /// This configuration for a profile identified from a trial of the
+    /// vessel, its errors known to `profile_sigma`: the velocities' process
+    /// noise of the water alone, and the profile errors' prior
+    /// ([`Self::identified`]).
+    pub fn with_identified_profile(mut self, profile_sigma: [f64; 4]) -> Self {
+        self.unmodelled_force_factor = 1.0;
+        self.set_velocity_noise();
+        self.set_profile_sigma(profile_sigma);
+        self
+    }
+
+    /// The velocities' process noise for [`Self::params`] and
+    /// [`Self::unmodelled_force_factor`]: the numbers [`Self::otter_with`]
+    /// writes for the Otter (the formula's, rounded), the formula of
+    /// [`harbour_velocity_noise`] for any other vessel.
+    fn set_velocity_noise(&mut self) {
+        let q = if self.params == VesselParams::default() {
+            let written = Self::otter_with(1.0).filter.process_noise_density;
+            Matrix3::from_fn(|i, j| written[(idx::U + i, idx::U + j)])
+        } else {
+            harbour_velocity_noise(&self.params)
+        } * self.unmodelled_force_factor;
+        for i in 0..3 {
+            for j in 0..3 {
+                self.filter.process_noise_density[(idx::U + i, idx::U + j)] = q[(i, j)];
+            }
+        }
+    }
+}
+
+/// The random forces of harbour water (gusts and chop) on the Otter, as
+/// standard deviations in surge (N), sway (N) and yaw (N m): the
+/// simulator's default disturbance, `twin_sim::DisturbanceSpec`.
+const OTTER_HARBOUR_FORCE: [f64; 3] = [3.0, 4.0, 0.5];
+/// Their correlation time, s.
+const HARBOUR_FORCE_CORRELATION_S: f64 = 2.0;
+
+/// The velocities' process noise density (surge, sway, yaw) of harbour
+/// water on the vessel `params` describes: white accelerations
+/// `q = M^-1 diag(2 F^2 T) M^-T` for random forces `F` of correlation time
+/// `T`. The forces are the Otter's scaled with the hull: the surge and sway
+/// forces with its wetted area (its mass to the power 2/3), the yaw moment
+/// with that area times its length.
+pub fn harbour_velocity_noise(params: &VesselParams) -> Matrix3<f64> {
+    let otter = VesselParams::default();
+    let area_ratio = (params.mass_kg / otter.mass_kg).powf(2.0 / 3.0);
+    let length_ratio = params.length_m / otter.length_m;
+    let force = [
+        OTTER_HARBOUR_FORCE[0] * area_ratio,
+        OTTER_HARBOUR_FORCE[1] * area_ratio,
+        OTTER_HARBOUR_FORCE[2] * area_ratio * length_ratio,
+    ];
+    let spectral = Matrix3::from_diagonal(&Vector3::from(
+        force.map(|f| 2.0 * f * f * HARBOUR_FORCE_CORRELATION_S),
+    ));
+    let inverse = params
+        .mass_matrix
+        .try_inverse()
+        .unwrap_or_else(Matrix3::identity);
+    inverse * spectral * inverse.transpose()
+}
 
 /// How a part of the model enters a filter run: left out, estimated, or
 /// held at given values.
@@ -198,7 +283,8 @@ pub enum Term<const K: usize> {
 /// What the kinetic base estimates and how it measures.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KineticOptions {
-    /// Effects on the measurement (none for the live twin).
+    /// Effects on the measurement beyond the profile's (none for the live
+    /// twin; an antenna offset here adds to the profile's antenna position).
     pub effects: SensorEffects,
     /// The water current `[north, east]`, m/s.
     pub current: Term<2>,
@@ -314,7 +400,12 @@ impl KineticBase {
             hold(fault::THRUST);
             hold(fault::MASS);
         }
-        let model = OtterTwin::new(config.params).with_effects(options.effects);
+        // The profile's antenna position, and any lever arm a search adds to it.
+        let mut effects = options.effects;
+        for (arm, profile) in effects.antenna_m.iter_mut().zip(config.params.antenna_m) {
+            *arm += profile;
+        }
+        let model = OtterTwin::new(config.params).with_effects(effects);
         Ok(Self {
             filter: Aekf::new(model, filter)?,
             options,
@@ -675,5 +766,73 @@ impl ShaftAccumulator {
         self.start_s = Some(time_s.max(last.time_s));
         self.count = 0;
         result
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The Otter's velocity noise written in [`KineticConfig::otter_with`]
+    /// is the formula of [`harbour_velocity_noise`] for its mass matrix,
+    /// rounded to two digits.
+    #[test]
+    fn the_harbour_noise_formula_gives_the_otters_numbers() {
+        let written = KineticConfig::otter_with(1.0).filter.process_noise_density;
+        let computed = harbour_velocity_noise(&VesselParams::default());
+        for (i, a) in [idx::U, idx::V, idx::R].into_iter().enumerate() {
+            for (j, b) in [idx::U, idx::V, idx::R].into_iter().enumerate() {
+                let (w, c) = (written[(a, b)], computed[(i, j)]);
+                if i != j && (i == 0 || j == 0) {
+                    assert_eq!(w, 0.0);
+                    assert!(c.abs() < 1e-12, "({i}, {j}): {c}");
+                } else {
+                    assert!((w - c).abs() <= 0.02 * w.abs(), "({i}, {j}): {w} vs {c}");
+                }
+            }
+        }
+    }
+
+    /// A vessel twice the Otter's mass matrix, alike in shape, feels forces
+    /// 2^(2/3) times the Otter's (in yaw also times its length ratio) and
+    /// so accelerations 2^(2/3) / 2 times as strong: variances times
+    /// 2^(-2/3) (and 2^(4/3) 2^(-2) in yaw with a length of 4 m).
+    #[test]
+    fn a_heavier_hull_takes_less_noise_per_mass() {
+        let otter = VesselParams::default();
+        let mut big = otter;
+        big.mass_kg *= 2.0;
+        big.mass_matrix *= 2.0;
+        big.length_m *= 2.0;
+        let (q0, q1) = (harbour_velocity_noise(&otter), harbour_velocity_noise(&big));
+        let surge = q1[(0, 0)] / q0[(0, 0)];
+        assert!((surge - 2f64.powf(-2.0 / 3.0)).abs() < 1e-9, "{surge}");
+        let config = KineticConfig::for_vessel(big, 1.0);
+        assert_eq!(config.params, big);
+        assert_eq!(
+            config.filter.process_noise_density[(idx::U, idx::U)],
+            q1[(0, 0)]
+        );
+        assert_eq!(
+            config.filter.process_noise_density[(idx::R, idx::V)],
+            q1[(2, 1)]
+        );
+    }
+
+    /// The Otter's configurations are the ones written out, whichever way
+    /// they are reached.
+    #[test]
+    fn the_otter_reached_through_a_profile_is_the_written_otter() {
+        let otter = VesselParams::default();
+        assert_eq!(
+            KineticConfig::for_vessel(otter, 5.0),
+            KineticConfig::otter()
+        );
+        let identified = KineticConfig::otter().with_identified_profile([0.01; 4]);
+        assert_eq!(identified, KineticConfig::identified([0.01; 4]));
+        assert_eq!(
+            KineticConfig::otter().for_search().filter,
+            KineticConfig::otter_with(1.0).filter
+        );
     }
 }

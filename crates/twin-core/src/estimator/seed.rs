@@ -12,7 +12,7 @@ use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
 use crate::inputs::{Butterworth, InputConfigError, InputDerivationConfig, InputDeriver, LowPass};
 use crate::model::Measurement;
 use crate::models::kinematic::{KinematicInput, KinematicModel};
-use crate::otter::{OtterParams, seed_thruster_faults};
+use crate::vessel::{VesselParams, seed_thruster_faults};
 
 /// The seed's method.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -206,7 +206,7 @@ impl YawAcceleration {
 /// The seed's step 4 at the current estimate: per-thruster values from the
 /// input faults (`None` where the thrust is too small for the ratio).
 pub(crate) fn step_four(
-    params: &OtterParams,
+    params: &VesselParams,
     config: &SeedConfig,
     state: &AekfState<4, 4, 2>,
     input: &KinematicInput,

@@ -62,8 +62,8 @@ use crate::geodesy::wrap_pi;
 use crate::linalg::{Pattern, mul, mul_sparse_left};
 use crate::model::{Model, Observation, Transition};
 use crate::models::effects::{Kinematics, SensorEffects, gnss_measurement};
-use crate::otter::OtterParams;
 use crate::trig;
+use crate::vessel::VesselParams;
 
 /// Longest integration sub-step, seconds.
 pub const MAX_SUBSTEP_S: f64 = 0.2;
@@ -288,11 +288,23 @@ pub struct ShaftSpeeds {
     pub starboard_radps: f64,
 }
 
+/// `1 / (1 + th_m)`, the factor the mass error puts on the accelerations,
+/// and its derivative in `th_m`; the error is held at -90 % at worst (the
+/// model's mass never reaches zero).
+fn inertia_of(mass_error: f64) -> (f64, f64) {
+    let factor = 1.0 + mass_error;
+    if factor > 0.1 {
+        (1.0 / factor, -1.0 / factor)
+    } else {
+        (10.0, 0.0)
+    }
+}
+
 /// The Otter's kinetic twin.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OtterTwin {
     /// The vessel's parameters.
-    pub params: OtterParams,
+    pub params: VesselParams,
     /// Effects on the measurement (none by default).
     pub effects: SensorEffects,
     /// `M^-1`, computed once.
@@ -301,7 +313,7 @@ pub struct OtterTwin {
 
 impl OtterTwin {
     /// The twin of a vessel with `params`.
-    pub fn new(params: OtterParams) -> Self {
+    pub fn new(params: VesselParams) -> Self {
         let mass_inverse = params
             .mass_matrix
             .try_inverse()
@@ -322,7 +334,7 @@ impl OtterTwin {
 
 impl Default for OtterTwin {
     fn default() -> Self {
-        Self::new(OtterParams::default())
+        Self::new(VesselParams::default())
     }
 }
 
@@ -646,7 +658,7 @@ impl OtterTwin {
             nr * yaw_damping - cf * ints.x_w_abs_w,
         );
         // (1 + th_m) M nu' = g: the mass error divides the acceleration.
-        let inertia = 1.0 / (1.0 + theta[fault::MASS]);
+        let (inertia, inertia_slope) = inertia_of(theta[fault::MASS]);
         let nu_dot = mul(&self.mass_inverse, &(tau - coriolis + damping)) * inertia;
 
         let mut xdot = State::zeros();
@@ -713,7 +725,7 @@ impl OtterTwin {
             );
             d.b_nu = mul(&self.mass_inverse, &dtau) * inertia;
             // d nu' / d th_m = -nu' / (1 + th_m).
-            d.b_nu.set_column(fault::MASS, &(nu_dot * -inertia));
+            d.b_nu.set_column(fault::MASS, &(nu_dot * inertia_slope));
         }
         d
     }

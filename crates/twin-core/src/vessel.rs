@@ -1,5 +1,8 @@
-//! The Otter's parameters (docs/model.md section 6, from Fossen's `otter.m` and the
-//! Python Vehicle Simulator with a 25 kg payload), and the seed's step 4:
+//! A twin-propeller vessel's parameters, the numbers of its profile
+//! (`twin_wire::profile` reads them from a file; docs/profiles.md), with
+//! the Otter's as the default (docs/model.md section 6, from Fossen's
+//! `otter.m` and the Python Vehicle Simulator with a 25 kg payload); and
+//! the seed's step 4:
 //! from faults on the kinematic inputs to a fault per thruster (docs/model.md
 //! section 5), done with the correct thrust split.
 //!
@@ -10,9 +13,9 @@ use nalgebra::{Matrix3, Vector2};
 
 use crate::sample::Side;
 
-/// The Otter's parameters in surge, sway and yaw.
+/// A twin-propeller vessel's parameters in surge, sway and yaw.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct OtterParams {
+pub struct VesselParams {
     /// Rigid-body mass, hull and payload, kg.
     pub mass_kg: f64,
     /// Longitudinal position of the centre of gravity from the origin, m.
@@ -47,9 +50,12 @@ pub struct OtterParams {
     /// 2D cross-flow drag coefficient of a pontoon section (Hoerner's curve
     /// at `B / 2T = 0.25 / 0.39`: about 1.0).
     pub crossflow_drag_coeff: f64,
+    /// The GNSS antenna's position in the body frame `[forward, starboard]`
+    /// from the body origin, m.
+    pub antenna_m: [f64; 2],
 }
 
-impl Default for OtterParams {
+impl Default for VesselParams {
     /// The Otter with a 25 kg payload (docs/model.md section 6).
     fn default() -> Self {
         let yaw_inertia_total = 42.65;
@@ -81,11 +87,12 @@ impl Default for OtterParams {
             draft_m: (80.0 / 1025.0) / (2.0 * 0.4 * 0.25 * 2.0),
             water_density_kgpm3: 1025.0,
             crossflow_drag_coeff: 1.0,
+            antenna_m: [0.0, 0.0],
         }
     }
 }
 
-impl OtterParams {
+impl VesselParams {
     /// Thrust of one propeller at shaft speed `n_radps` (saturated to the
     /// shaft's limits), N: `k n |n|` with the ahead or astern coefficient.
     pub fn thrust_n(&self, n_radps: f64) -> f64 {
@@ -162,7 +169,7 @@ impl ThrusterFaults {
 /// losses through the reduced kinetic model, at surge speed `u`, yaw rate `r`
 /// and accelerations `u_dot`, `r_dot`. `min_thrust_n` guards the ratio.
 pub fn seed_thruster_faults(
-    params: &OtterParams,
+    params: &VesselParams,
     u_mps: f64,
     r_radps: f64,
     u_dot: f64,
@@ -195,7 +202,7 @@ mod tests {
 
     #[test]
     fn parameters_match_model_md() {
-        let p = OtterParams::default();
+        let p = VesselParams::default();
         assert!(
             (p.linear_damping[0] + 77.55).abs() < 0.05,
             "{}",
@@ -221,7 +228,7 @@ mod tests {
     fn thrust_split_inverts_the_force_model_in_consistent_units() {
         // Regression for ERRATA 7: the authors inverted [[1, b], [1, -b]],
         // mixing newtons with newton-metres and the yaw sign.
-        let p = OtterParams::default();
+        let p = VesselParams::default();
         let (tp, ts) = (80.0, 30.0);
         let x = tp + ts;
         let n = p.propeller_offset_m * (tp - ts);
@@ -233,7 +240,7 @@ mod tests {
 
     #[test]
     fn input_faults_map_to_the_thruster_that_does_the_work() {
-        let p = OtterParams::default();
+        let p = VesselParams::default();
         // Accelerating straight: both thrusters share; a surge-input fault hits both alike.
         let f = seed_thruster_faults(&p, 1.5, 0.0, 0.3, 0.0, Vector2::new(0.2, 0.0), 5.0);
         let (lp, ls) = (f.loss[0].unwrap(), f.loss[1].unwrap());

@@ -1,0 +1,156 @@
+//! `twin identify` as a user runs it: a trial simulated for a healthy
+//! vessel that is not the Otter (`config/scenarios/identify_heavy-otter.toml`:
+//! twice its mass, 60 % more hull resistance, 30 % less yaw damping), the
+//! profile identified from the Otter's, written, and read back; and a
+//! straight run, which cannot give the yaw damping and must say so.
+//!
+//! The bars were fixed before the runs: a parameter the trial excites
+//! within 10 % of the simulator's; the force scale held; the held-out
+//! prediction better than the starting profile's.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use twin_cli::demo::workspace_root;
+use twin_wire::profile::VesselProfile;
+
+/// A fresh directory for one test's files.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("twin-identify-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Runs `twin` with `args` in `dir`; its standard output, after checking
+/// that it succeeded.
+fn twin(dir: &Path, args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_twin"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("twin runs");
+    assert!(
+        out.status.success(),
+        "twin {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// `twin identify --json` on `log`, with the profile written to `out`.
+fn identify(dir: &Path, log: &str, out: &str) -> serde_json::Value {
+    let json = twin(
+        dir,
+        &["identify", log, "--name", "trial", "--out", out, "--json"],
+    );
+    serde_json::from_str(&json).unwrap()
+}
+
+/// The parameter `name` of a report: `(scale, sigma, verdict)`.
+fn parameter(report: &serde_json::Value, name: &str) -> (f64, f64, String) {
+    let p = report["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == name)
+        .unwrap_or_else(|| panic!("{name} is reported"));
+    (
+        p["scale"].as_f64().unwrap(),
+        p["sigma"].as_f64().unwrap(),
+        p["verdict"].as_str().unwrap().to_owned(),
+    )
+}
+
+#[test]
+fn a_manoeuvring_trial_identifies_the_hull_resistance_and_holds_the_force_scale() {
+    let dir = scratch("heavy");
+    let scenario = workspace_root().join("config/scenarios/identify_heavy-otter.toml");
+    twin(
+        &dir,
+        &[
+            "simulate",
+            "--scenario",
+            scenario.to_str().unwrap(),
+            "--out",
+            "trial.nmea",
+        ],
+    );
+    let report = identify(&dir, "trial.nmea", "trial.toml");
+    println!("{}", serde_json::to_string_pretty(&report).unwrap());
+
+    let (surge, surge_sigma, verdict) = parameter(&report, "surge damping");
+    assert_eq!(verdict, "identified");
+    assert!(
+        (surge / 1.6 - 1.0).abs() < 0.10,
+        "surge damping x{surge} (truth x1.6)"
+    );
+    assert!(surge_sigma < 0.05, "{surge_sigma}");
+    let (thrust, _, verdict) = parameter(&report, "thrust coefficients");
+    assert_eq!((thrust, verdict.as_str()), (1.0, "held"));
+    // What the identified profile gains on the held-out part.
+    let [before, after] = [0, 1].map(|i| report["heldout_nll_per_step"][i].as_f64().unwrap());
+    assert!(after < before, "held-out NLL per step {before} -> {after}");
+    for row in report["heldout_rmse_m"].as_array().unwrap() {
+        let (h, b, a) = (
+            row[0].as_f64().unwrap(),
+            row[1].as_f64().unwrap(),
+            row[2].as_f64().unwrap(),
+        );
+        assert!(a < b, "position error at {h} s: {b} m -> {a} m");
+    }
+
+    // The profile written: valid, named, identified from this trial, with
+    // the surge damping found and the propellers' places kept.
+    let written = VesselProfile::from_file(&dir.join("trial.toml")).unwrap();
+    let otter = VesselProfile::otter();
+    assert_eq!(written.name, "trial");
+    assert_eq!(report["profile"].as_str().unwrap(), written.identity());
+    let ratio = written.damping.surge_n_per_mps / otter.damping.surge_n_per_mps;
+    assert!((ratio - surge).abs() < 1e-9, "{ratio} vs {surge}");
+    assert_eq!(written.propellers, otter.propellers);
+    let identified = written.identified.expect("an [identified] table");
+    assert_eq!(identified.trial, "trial.nmea");
+    assert!(identified.surge_damping_sigma >= 0.05);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_straight_run_does_not_give_the_yaw_damping_and_says_so() {
+    let dir = scratch("straight");
+    let scenario = workspace_root().join("config/scenarios/identify_heavy-otter.toml");
+    let text = std::fs::read_to_string(&scenario).unwrap();
+    // The same vessel, both shafts at one speed for three minutes.
+    let start = text.find("[manual]").unwrap();
+    let end = text[start..].find("]\n\n").unwrap() + start + 3;
+    let straight = format!(
+        "{}[manual]\ncommands = [{{ time_s = 0.0, port_rpm = 800.0, starboard_rpm = 800.0 }}]\n\n{}",
+        &text[..start],
+        &text[end..]
+    )
+    .replace("duration_s = 360.0", "duration_s = 180.0");
+    std::fs::write(dir.join("straight.toml"), straight).unwrap();
+    twin(
+        &dir,
+        &[
+            "simulate",
+            "--scenario",
+            "straight.toml",
+            "--out",
+            "straight.nmea",
+        ],
+    );
+    let report = identify(&dir, "straight.nmea", "straight-profile.toml");
+    println!("{}", serde_json::to_string_pretty(&report).unwrap());
+    let (yaw, _, verdict) = parameter(&report, "yaw damping");
+    assert_eq!(verdict, "not_identifiable", "yaw damping x{yaw}");
+    // Not invented: the profile keeps the starting yaw damping.
+    let written = VesselProfile::from_file(&dir.join("straight-profile.toml")).unwrap();
+    let otter = VesselProfile::otter();
+    assert_eq!(
+        written.damping.yaw_nm_per_radps,
+        otter.damping.yaw_nm_per_radps
+    );
+    assert_eq!(written.identified.unwrap().yaw_damping_sigma, 0.25);
+    let _ = std::fs::remove_dir_all(&dir);
+}

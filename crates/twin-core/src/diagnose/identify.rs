@@ -1,0 +1,365 @@
+//! `identify`: a vessel profile's parameters from a trial of the healthy
+//! vessel, with their uncertainty, what the trial could not excite, and the
+//! gain on the part of the trial the fit never saw.
+//!
+//! # Method
+//! The profile's surge damping, yaw damping and mass (with its inertia and
+//! added mass, as one scale) are searched for the largest likelihood of
+//! the training part of the trial (the first `1 - holdout_fraction` of it)
+//! under the extended twin: both propellers healthy (losses held at zero),
+//! the current estimated, the velocities' process noise that of the water
+//! alone, so that a wrong profile shows in the innovations. The search runs
+//! on the logarithm of each scale, one parameter at a time (a grid, then a
+//! golden-section refinement), in rounds until no scale moves by more than
+//! `tolerance`; each parameter's uncertainty is the likelihood's curvature
+//! (the inverse of the Hessian's diagonal block, so that two parameters the
+//! trial cannot tell apart are both reported as uncertain).
+//!
+//! **The force scale.** Positions and shaft speeds say how the vessel
+//! accelerates and turns for a shaft speed, never how many newtons that
+//! takes: scaling the mass, the damping and the thrust together changes no
+//! motion. The thrust coefficient is therefore held at the starting
+//! profile's (a propeller's data sheet, or a bollard pull) and the mass and
+//! damping identified relative to it; the loss of a propeller is relative
+//! to that baseline either way.
+//!
+//! **Not excited.** A parameter whose standard deviation after the trial
+//! is above `identifiable_sigma` is reported as not identifiable from this
+//! trial (a straight run at one speed cannot give the mass, a run without
+//! turns cannot give the yaw damping) and keeps its starting value.
+//!
+//! **Judged on held-out data.** The starting and the identified profile are
+//! each run, with their errors held at zero, over the whole trial; the
+//! held-out part's log-likelihood per step and position prediction errors
+//! are compared.
+
+use super::fit::{DiagnoseConfig, Hypothesis, minimise_1d};
+use super::pass::{PassOptions, kinetic_pass};
+use super::prepare::Prepared;
+use crate::estimator::{KineticConfig, Term};
+use crate::twin::TwinConfig;
+use crate::vessel::VesselParams;
+
+/// The parameters `identify` estimates, in the twin's order of the
+/// profile's errors.
+pub const IDENTIFIED_PARAMETERS: [&str; 4] = [
+    "surge damping",
+    "yaw damping",
+    "thrust coefficients",
+    "mass and inertia",
+];
+
+/// The index of the thrust coefficients in [`IDENTIFIED_PARAMETERS`].
+const THRUST: usize = 2;
+
+/// How an identification runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct IdentifyConfig {
+    /// Held-out fraction, horizons and the rest of the judging.
+    pub diagnose: DiagnoseConfig,
+    /// A parameter is identified when the trial pins its relative error
+    /// to this standard deviation or better.
+    pub identifiable_sigma: f64,
+    /// Rounds stop when no scale moves by more than this (relative).
+    pub tolerance: f64,
+    /// The most rounds.
+    pub max_rounds: usize,
+}
+
+impl Default for IdentifyConfig {
+    fn default() -> Self {
+        Self {
+            diagnose: DiagnoseConfig::default(),
+            identifiable_sigma: 0.05,
+            tolerance: 0.005,
+            max_rounds: 8,
+        }
+    }
+}
+
+/// One parameter's identification.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ParameterEstimate {
+    /// What it is ([`IDENTIFIED_PARAMETERS`]).
+    pub name: &'static str,
+    /// The identified value over the starting profile's.
+    pub scale: f64,
+    /// Standard deviation of its logarithm after the trial (about the
+    /// relative standard deviation).
+    pub sigma: f64,
+    /// Whether the trial pinned it down (else it keeps its starting value).
+    pub identified: bool,
+    /// Held at the starting profile's by construction (the force scale).
+    pub held: bool,
+}
+
+/// How well a profile predicts the held-out part of the trial.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeldOut {
+    /// Negative log-likelihood per held-out step.
+    pub nll_per_step: f64,
+    /// Position prediction RMSE per horizon: `(horizon s, m)`.
+    pub rmse_m: Vec<(f64, f64)>,
+}
+
+/// What an identification found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Identification {
+    /// The identified parameters (the starting ones where not identified).
+    pub params: VesselParams,
+    /// Each parameter.
+    pub estimates: [ParameterEstimate; 4],
+    /// The relative standard deviations to give the twin of the identified
+    /// profile ([`KineticConfig::profile_sigma`]).
+    pub profile_sigma: [f64; 4],
+    /// Rounds run.
+    pub rounds: usize,
+    /// The starting profile on the held-out part.
+    pub before: HeldOut,
+    /// The identified profile on the held-out part.
+    pub after: HeldOut,
+    /// Steps in the training and the held-out part.
+    pub training_steps: usize,
+    /// Held-out steps.
+    pub heldout_steps: usize,
+}
+
+/// Relative standard deviation given to the twin for a parameter the trial
+/// did not identify: an uncalibrated profile's.
+const UNIDENTIFIED_SIGMA: f64 = 0.25;
+/// The smallest relative standard deviation given to the twin for an
+/// identified parameter: what one trial in one sea state can promise (the
+/// likelihood's curvature knows nothing of what the model itself lacks).
+const MIN_IDENTIFIED_SIGMA: f64 = 0.05;
+
+/// `params` with each of the scales `[surge damping, yaw damping, thrust,
+/// mass]` applied.
+fn scaled(params: &VesselParams, scales: [f64; 4]) -> VesselParams {
+    let mut p = *params;
+    p.linear_damping[0] *= scales[0];
+    p.linear_damping[2] *= scales[1];
+    p.thrust_coeff_ahead *= scales[THRUST];
+    p.thrust_coeff_astern *= scales[THRUST];
+    p.mass_kg *= scales[3];
+    p.mass_matrix *= scales[3];
+    for a in &mut p.added_mass {
+        *a *= scales[3];
+    }
+    p
+}
+
+/// The searched parameters' indices in [`IDENTIFIED_PARAMETERS`].
+const SEARCHED: [usize; 3] = [0, 1, 3];
+
+/// The twin `params` describes, taken as exact, with the water's process
+/// noise alone.
+fn exact_twin(base: &DiagnoseConfig, params: VesselParams) -> DiagnoseConfig {
+    DiagnoseConfig {
+        twin: TwinConfig {
+            kinetic: KineticConfig {
+                estimate_current: base.twin.kinetic.estimate_current,
+                ..KineticConfig::for_vessel(params, 1.0)
+            },
+            ..base.twin
+        },
+        ..base.clone()
+    }
+}
+
+/// The healthy twin's hypothesis: the current estimated, no loss.
+fn healthy() -> Hypothesis {
+    Hypothesis {
+        current: Term::Free,
+        loss: Term::Fixed([0.0, 0.0]),
+        ..Hypothesis::nominal()
+    }
+}
+
+/// Negative log-likelihood of the training part under `params`.
+fn training_nll(prep: &Prepared, base: &DiagnoseConfig, params: VesselParams, split: usize) -> f64 {
+    let config = exact_twin(base, params);
+    let out = kinetic_pass(
+        prep,
+        &healthy(),
+        PassOptions {
+            split,
+            train_only: true,
+            record: false,
+            config: &config,
+        },
+    );
+    if out.failed || !out.nll_train.is_finite() {
+        f64::INFINITY
+    } else {
+        out.nll_train
+    }
+}
+
+/// The first held-out step of `prep` under `config`.
+fn split_of(prep: &Prepared, config: &DiagnoseConfig) -> usize {
+    let n = prep.steps.len();
+    ((n as f64) * (1.0 - config.holdout_fraction)).round() as usize
+}
+
+/// `params` judged on the held-out part: the twin with the current
+/// estimated, the propellers healthy and the profile taken as exact.
+fn held_out(prep: &Prepared, base: &DiagnoseConfig, params: VesselParams) -> HeldOut {
+    let config = exact_twin(base, params);
+    let out = kinetic_pass(
+        prep,
+        &healthy(),
+        PassOptions {
+            split: split_of(prep, &config),
+            train_only: false,
+            record: false,
+            config: &config,
+        },
+    );
+    HeldOut {
+        nll_per_step: if out.failed || out.steps_test == 0 {
+            f64::INFINITY
+        } else {
+            out.nll_test / out.steps_test as f64
+        },
+        rmse_m: out.rmse(),
+    }
+}
+
+/// Farthest a scale is searched from the starting profile's: a factor of 4.
+const MAX_LOG_SCALE: f64 = 1.386_294_361_119_890_6;
+/// Grid points of a one-parameter search.
+const GRID: usize = 16;
+/// Step of the finite differences of the likelihood's curvature, in the
+/// logarithm of a scale.
+const CURVATURE_STEP: f64 = 0.02;
+
+/// The standard deviations of the log-scales from the likelihood's Hessian
+/// at `log_scales` (the square roots of its inverse's diagonal; infinite
+/// where the Hessian is not positive definite).
+fn marginal_sigma(nll: &dyn Fn([f64; 3]) -> f64, log_scales: [f64; 3]) -> [f64; 3] {
+    let h = CURVATURE_STEP;
+    let at = |di: [f64; 3]| nll(std::array::from_fn(|k| log_scales[k] + di[k]));
+    let f0 = at([0.0; 3]);
+    let mut hessian = nalgebra::Matrix3::<f64>::zeros();
+    for i in 0..3 {
+        let mut e = [0.0; 3];
+        e[i] = h;
+        let plus = at(e);
+        e[i] = -h;
+        let minus = at(e);
+        hessian[(i, i)] = (plus - 2.0 * f0 + minus) / (h * h);
+        for j in 0..i {
+            let mut pp = [0.0; 3];
+            pp[i] = h;
+            pp[j] = h;
+            let mut mm = [0.0; 3];
+            mm[i] = -h;
+            mm[j] = -h;
+            let mut pm = [0.0; 3];
+            pm[i] = h;
+            pm[j] = -h;
+            let mut mp = [0.0; 3];
+            mp[i] = -h;
+            mp[j] = h;
+            let v = (at(pp) - at(pm) - at(mp) + at(mm)) / (4.0 * h * h);
+            hessian[(i, j)] = v;
+            hessian[(j, i)] = v;
+        }
+    }
+    match hessian.cholesky() {
+        Some(c) => {
+            let inverse = c.inverse();
+            std::array::from_fn(|k| inverse[(k, k)].max(0.0).sqrt())
+        }
+        None => [f64::INFINITY; 3],
+    }
+}
+
+/// Identifies the profile of the vessel of `prep` (a trial of it healthy,
+/// with propeller speeds), starting from `start`. `None` when the trial has
+/// no propeller speeds or the twin cannot run on it.
+pub fn identify(
+    prep: &Prepared,
+    start: &VesselParams,
+    config: &IdentifyConfig,
+) -> Option<Identification> {
+    if !prep.has_propellers || prep.steps.len() < 10 {
+        return None;
+    }
+    let split = split_of(prep, &config.diagnose);
+    let params_of = |log_scales: [f64; 3]| {
+        let mut scales = [1.0; 4];
+        for (slot, k) in SEARCHED.iter().enumerate() {
+            scales[*k] = log_scales[slot].exp();
+        }
+        scaled(start, scales)
+    };
+    let nll =
+        |log_scales: [f64; 3]| training_nll(prep, &config.diagnose, params_of(log_scales), split);
+    if !nll([0.0; 3]).is_finite() {
+        return None;
+    }
+    let mut log_scales = [0.0; 3];
+    let mut rounds = 0;
+    while rounds < config.max_rounds {
+        rounds += 1;
+        let mut largest_move: f64 = 0.0;
+        for slot in 0..3 {
+            let along = |x: f64| {
+                let mut s = log_scales;
+                s[slot] = x;
+                nll(s)
+            };
+            // Each round searches a narrower window about the last value.
+            let half = MAX_LOG_SCALE / rounds as f64;
+            let lo = (log_scales[slot] - half).max(-MAX_LOG_SCALE);
+            let hi = (log_scales[slot] + half).min(MAX_LOG_SCALE);
+            let (best, _) = minimise_1d(&along, lo, hi, GRID);
+            if along(best) <= along(log_scales[slot]) {
+                largest_move = largest_move.max((best - log_scales[slot]).abs());
+                log_scales[slot] = best;
+            }
+        }
+        if largest_move < config.tolerance && rounds > 1 {
+            break;
+        }
+    }
+    let sigma_log = marginal_sigma(&nll, log_scales);
+    let mut scale = [1.0; 4];
+    let mut sigma = [0.0; 4];
+    for (slot, k) in SEARCHED.iter().enumerate() {
+        scale[*k] = log_scales[slot].exp();
+        sigma[*k] = sigma_log[slot];
+    }
+    let estimates: [ParameterEstimate; 4] = std::array::from_fn(|k| ParameterEstimate {
+        name: IDENTIFIED_PARAMETERS[k],
+        scale: scale[k],
+        sigma: sigma[k],
+        identified: k != THRUST && sigma[k] <= config.identifiable_sigma,
+        held: k == THRUST,
+    });
+    // What the trial did not pin down keeps its starting value.
+    let kept: [f64; 4] = std::array::from_fn(|k| {
+        if estimates[k].identified {
+            scale[k]
+        } else {
+            1.0
+        }
+    });
+    let params = scaled(start, kept);
+    let profile_sigma = std::array::from_fn(|k| match estimates[k] {
+        e if e.held => MIN_IDENTIFIED_SIGMA,
+        e if e.identified => e.sigma.max(MIN_IDENTIFIED_SIGMA),
+        _ => UNIDENTIFIED_SIGMA,
+    });
+    Some(Identification {
+        params,
+        estimates,
+        profile_sigma,
+        rounds,
+        before: held_out(prep, &config.diagnose, *start),
+        after: held_out(prep, &config.diagnose, params),
+        training_steps: split,
+        heldout_steps: prep.steps.len().saturating_sub(split),
+    })
+}
