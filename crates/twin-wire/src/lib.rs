@@ -16,6 +16,8 @@
 //! - [`mod@assemble`]: records to the estimator's inputs (fixes with course,
 //!   speed and heading; paired propeller speeds), choosing sources.
 //! - [`mod@write`]: NMEA 0183 sentence writers and the JSON-lines writer.
+//! - [`ros2`]: the outputs and the GNSS input as ROS 2 messages in CDR, and
+//!   rmw_zenoh's keys, liveliness tokens and attachment.
 //!
 //! # Invariants
 //! No parser panics on any input: every refusal is a typed value. Readers
@@ -30,6 +32,7 @@ pub mod measurement;
 pub mod messages;
 pub mod outputs;
 pub mod read;
+pub mod ros2;
 pub mod time;
 pub mod write;
 
