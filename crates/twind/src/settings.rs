@@ -61,6 +61,8 @@ struct RawSettings {
     diagnose: RawDiagnose,
     #[serde(default)]
     daemon: RawDaemon,
+    #[serde(default)]
+    ros2: crate::ros2::RawRos2,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -275,6 +277,8 @@ pub struct Settings {
     pub twin: TwinConfig,
     /// The live residual monitor.
     pub diagnose: DiagnoseSettings,
+    /// ROS 2 over rmw_zenoh (`crate::ros2`).
+    pub ros2: crate::ros2::Ros2Settings,
 }
 
 impl Default for Settings {
@@ -433,6 +437,7 @@ impl Settings {
             web,
             twin,
             diagnose,
+            ros2: crate::ros2::Ros2Settings::from_raw(raw.ros2)?,
         })
     }
 }

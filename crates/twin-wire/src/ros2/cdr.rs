@@ -215,7 +215,11 @@ impl<'a> CdrReader<'a> {
 
     /// A sequence's element count, refused when even elements of
     /// `min_element_bytes` each could not fit in what is left.
-    pub fn len(&mut self, field: &'static str, min_element_bytes: usize) -> Result<usize, CdrError> {
+    pub fn len(
+        &mut self,
+        field: &'static str,
+        min_element_bytes: usize,
+    ) -> Result<usize, CdrError> {
         let len = self.u32(field)?;
         let n = len as usize;
         if n.saturating_mul(min_element_bytes.max(1)) > self.left() {

@@ -93,9 +93,9 @@ impl InputError {
     /// A short, stable name of the reason, for counting.
     pub fn reason(&self) -> &'static str {
         match self {
-            InputError::Cdr(_) => "bad_cdr",
-            InputError::NoFix => "no_fix",
-            InputError::NoVelocity { .. } => "no_velocity",
+            InputError::Cdr(_) => "ros2_bad_cdr",
+            InputError::NoFix => "ros2_no_fix",
+            InputError::NoVelocity { .. } => "ros2_no_velocity",
             InputError::Invalid(e) => e.reason(),
         }
     }
@@ -247,9 +247,11 @@ mod tests {
         assert_eq!(e.reason(), "out_of_range");
         let e = input.push(GnssTopic::Fix, &fix(t, f64::NAN)).unwrap_err();
         assert_eq!(e.reason(), "non_finite");
-        let e = input.push(GnssTopic::Fix, b"\x00\x01\x00\x00garbage").unwrap_err();
-        assert_eq!(e.reason(), "bad_cdr");
+        let e = input
+            .push(GnssTopic::Fix, b"\x00\x01\x00\x00garbage")
+            .unwrap_err();
+        assert_eq!(e.reason(), "ros2_bad_cdr");
         let e = input.push(GnssTopic::Vel, &[]).unwrap_err();
-        assert_eq!(e.reason(), "bad_cdr");
+        assert_eq!(e.reason(), "ros2_bad_cdr");
     }
 }

@@ -295,7 +295,10 @@ pub fn fault_diagnostics(fault: &FaultMessage) -> DiagnosticArray {
             kv("status", status_name(fault.status).to_string()),
             kv("excited", fault.excited.to_string()),
             kv("effectiveness_ratio", number_text(ratio.map(|r| r.value))),
-            kv("effectiveness_ratio_sigma", number_text(ratio.map(|r| r.sigma))),
+            kv(
+                "effectiveness_ratio_sigma",
+                number_text(ratio.map(|r| r.sigma)),
+            ),
             kv("onset", fault.onset.clone().unwrap_or_default()),
             kv("model", model.to_string()),
             kv("replay", fault.replay.to_string()),
@@ -355,7 +358,13 @@ mod tests {
             crate::time::format_rfc3339(seconds_of_stamp(t)).unwrap(),
             "2024-05-01T12:00:00.123456Z"
         );
-        assert_eq!(stamp_of_seconds(9.999_999_9), Time { sec: 10, nanosec: 0 });
+        assert_eq!(
+            stamp_of_seconds(9.999_999_9),
+            Time {
+                sec: 10,
+                nanosec: 0
+            }
+        );
         assert_eq!(stamp_of("not a time"), Time::default());
     }
 

@@ -63,9 +63,8 @@ mod fixed {
     ) -> Result<[f64; N], D::Error> {
         let v = Vec::<f64>::deserialize(d)?;
         let len = v.len();
-        v.try_into().map_err(|_| {
-            serde::de::Error::invalid_length(len, &format!("{N} numbers").as_str())
-        })
+        v.try_into()
+            .map_err(|_| serde::de::Error::invalid_length(len, &format!("{N} numbers").as_str()))
     }
 }
 

@@ -106,7 +106,12 @@ impl NodeIdentity {
 
     /// The liveliness key of entity `entity_id` of kind `kind`; `endpoint`
     /// for a publisher or subscription.
-    pub fn token(&self, entity_id: u32, kind: EntityKind, endpoint: Option<Endpoint<'_>>) -> String {
+    pub fn token(
+        &self,
+        entity_id: u32,
+        kind: EntityKind,
+        endpoint: Option<Endpoint<'_>>,
+    ) -> String {
         let mut key = format!(
             "{ADMIN_SPACE}/{}/{}/{}/{entity_id}/{}/{}/{}/{}",
             self.domain_id,
@@ -198,7 +203,12 @@ mod tests {
     #[test]
     fn keys_and_tokens_have_rmw_zenohs_shape() {
         assert_eq!(
-            topic_key(3, "/usv/otter1/twin/fault", "diagnostic_msgs::msg::dds_::DiagnosticArray_", "RIHS01_5a"),
+            topic_key(
+                3,
+                "/usv/otter1/twin/fault",
+                "diagnostic_msgs::msg::dds_::DiagnosticArray_",
+                "RIHS01_5a"
+            ),
             "3/usv/otter1/twin/fault/diagnostic_msgs::msg::dds_::DiagnosticArray_/RIHS01_5a"
         );
         let n = node();
