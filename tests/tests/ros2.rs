@@ -60,6 +60,8 @@ struct Case {
     cdr: Vec<u8>,
     /// The twin's decoder applied to bytes, re-encoded.
     reencode: fn(&[u8]) -> Vec<u8>,
+    /// Whether the twin's decoder takes the bytes.
+    decodes: fn(&[u8]) -> bool,
 }
 
 fn case<T: RosMessage + Serialize>(m: &T) -> Case {
@@ -73,6 +75,7 @@ fn case<T: RosMessage + Serialize>(m: &T) -> Case {
                 .expect("the twin reads rosbags' CDR")
                 .to_cdr()
         },
+        decodes: |b| T::from_cdr(b).is_ok(),
     }
 }
 
@@ -185,10 +188,10 @@ fn truncated_and_garbage_cdr_is_refused() {
     use rand::{Rng, SeedableRng};
     let mut rng = rand::rngs::StdRng::seed_from_u64(24);
     for c in golden_cases() {
+        assert!((c.decodes)(&c.cdr), "{}", c.type_name);
         for cut in 0..c.cdr.len().saturating_sub(8) {
-            let r = std::panic::catch_unwind(|| (c.reencode)(&c.cdr[..cut]));
             assert!(
-                r.is_err() || cut == 0,
+                !(c.decodes)(&c.cdr[..cut]),
                 "{} accepted a cut at {cut}",
                 c.type_name
             );
