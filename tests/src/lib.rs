@@ -452,3 +452,31 @@ pub mod daemon {
         v
     }
 }
+
+/// Peers from package registries that tests check the twin against.
+pub mod peers {
+    use std::process::Command;
+
+    /// The Python interpreter (`$PYTHON`, else `python3`) once it imports
+    /// `module`; panics with `install` (the command that installs it) when
+    /// it does not: a test whose peer is missing fails, never passes.
+    pub fn python_with(module: &str, install: &str) -> String {
+        let python = std::env::var("PYTHON").unwrap_or_else(|_| "python3".to_owned());
+        let ok = Command::new(&python)
+            .args(["-c", &format!("import {module}")])
+            .status()
+            .is_ok_and(|s| s.success());
+        assert!(
+            ok,
+            "the Python module {module} is missing ({python}): run `{install}`"
+        );
+        python
+    }
+
+    /// The path of a file under `tests/peers/`.
+    pub fn script(name: &str) -> std::path::PathBuf {
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("peers")
+            .join(name)
+    }
+}

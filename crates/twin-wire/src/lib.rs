@@ -18,6 +18,8 @@
 //! - [`mod@assemble`]: records to the estimator's inputs (fixes with course,
 //!   speed and heading; paired propeller speeds), choosing sources.
 //! - [`mod@write`]: NMEA 0183 sentence writers and the JSON-lines writer.
+//! - [`ros2`]: the outputs and the GNSS input as ROS 2 messages in CDR, and
+//!   rmw_zenoh's keys, liveliness tokens and attachment.
 //!
 //! # Invariants
 //! No parser panics on any input: every refusal is a typed value. Readers
@@ -33,6 +35,7 @@ pub mod messages;
 pub mod outputs;
 pub mod profile;
 pub mod read;
+pub mod ros2;
 pub mod time;
 pub mod write;
 

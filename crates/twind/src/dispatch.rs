@@ -455,7 +455,7 @@ impl Dispatcher {
     /// Routes one message; when its vessel's queue is full, waits for room
     /// on this thread (Zenoh's, which then stops reading: back-pressure
     /// onto the sender, not loss).
-    fn on_message(&self, key: &KeyExpr<'_>, payload: &ZBytes) {
+    pub(crate) fn on_message(&self, key: &KeyExpr<'_>, payload: &ZBytes) {
         let blocked = match self.0.lock() {
             Ok(mut router) => router.route(key, payload),
             Err(_) => return,
@@ -470,6 +470,20 @@ impl Dispatcher {
             && let Ok(mut router) = self.0.lock()
         {
             router.task_ended(&vessel);
+        }
+    }
+
+    /// Counts a message refused before it could be routed (the ROS 2
+    /// input's undecodable messages), with its sender in the recent list.
+    pub(crate) fn refuse(
+        &self,
+        sender: &str,
+        reason: &'static str,
+        detail: &dyn std::fmt::Display,
+    ) {
+        if let Ok(mut router) = self.0.lock() {
+            router.summary.received += 1;
+            router.refuse(sender, reason, detail);
         }
     }
 
@@ -608,6 +622,7 @@ mod tests {
                         forecaster: crate::forecast::Forecaster::start(1, load.clone()).unwrap(),
                         load: load.clone(),
                         save_failures: crate::SaveFailures::default(),
+                        ros2: None,
                     },
                     done_tx,
                 },

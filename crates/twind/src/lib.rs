@@ -8,6 +8,8 @@
 //!   through an embedded peer.
 //! - [`forecast`]: the forecast threads, off the fault path.
 //! - [`persist`]: calibration files saved and restored per vessel.
+//! - [`ros2`]: with `[ros2] enabled`, the outputs as ROS 2 messages and
+//!   GNSS input from ROS 2, over rmw_zenoh on the same session.
 //! - [`stats`]: counting and rate-limited logging of rejections.
 //! - [`web`]: the operator's page (HTTP and server-sent events), served
 //!   from the outputs the daemon publishes.
@@ -38,6 +40,7 @@ pub mod demo;
 mod dispatch;
 pub mod forecast;
 pub mod persist;
+pub mod ros2;
 pub mod settings;
 pub mod stats;
 pub mod vessel;
@@ -369,6 +372,20 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
     ));
     let outputs = LatestOutputs::default();
     let save_failures = SaveFailures::default();
+    let ros2 = settings
+        .ros2
+        .enabled
+        .then(|| Arc::new(crate::ros2::Ros2Node::new(settings.ros2.clone(), &session)));
+    let ros2_token = match &ros2 {
+        Some(node) => Some(
+            session
+                .liveliness()
+                .declare_token(node.token_key())
+                .await
+                .map_err(|e| anyhow::anyhow!("cannot declare the ROS 2 node's token: {e}"))?,
+        ),
+        None => None,
+    };
     let dispatcher = crate::dispatch::Dispatcher::new(
         settings.clone(),
         crate::dispatch::VesselSpawner {
@@ -383,6 +400,7 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
                 forecaster,
                 load,
                 save_failures: save_failures.clone(),
+                ros2,
             },
             done_tx,
         },
@@ -396,6 +414,11 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
             .map_err(|e| {
                 anyhow::anyhow!("cannot subscribe to {}: {e}", input_key_expr(&settings))
             })?
+    };
+    let ros2_input = if settings.ros2.enabled {
+        Some(crate::ros2::Ros2Input::start(&session, settings.clone(), dispatcher.clone()).await?)
+    } else {
+        None
     };
     tracing::info!(
         inputs = %input_key_expr(&settings),
@@ -454,6 +477,9 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
     if let Err(e) = subscriber.undeclare().await {
         tracing::warn!("the input subscriber was not undeclared: {e}");
     }
+    if let Some(input) = ros2_input {
+        input.stop().await;
+    }
     publish_daemon_stats(&dispatcher).await;
     let mut summary = dispatcher.close();
     tracker.close();
@@ -462,6 +488,7 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         summary.vessels.insert(vessel, counters);
     }
     answer_latest.abort();
+    drop(ros2_token);
     tracing::info!(
         received = summary.received,
         routed = summary.routed,

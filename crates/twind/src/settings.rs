@@ -66,6 +66,8 @@ struct RawSettings {
     daemon: RawDaemon,
     #[serde(default)]
     profiles: RawProfiles,
+    #[serde(default)]
+    ros2: crate::ros2::RawRos2,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -295,6 +297,8 @@ pub struct Settings {
     pub twin: TwinConfig,
     /// The live residual monitor.
     pub diagnose: DiagnoseSettings,
+    /// ROS 2 over rmw_zenoh (`crate::ros2`).
+    pub ros2: crate::ros2::Ros2Settings,
     /// Vessel profiles, and which vessel uses which.
     pub profiles: ProfileSettings,
 }
@@ -526,6 +530,7 @@ impl Settings {
             twin,
             diagnose,
             profiles,
+            ros2: crate::ros2::Ros2Settings::from_raw(raw.ros2)?,
         })
     }
 }

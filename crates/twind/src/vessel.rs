@@ -53,6 +53,7 @@ use zenoh::{Session, Wait};
 
 use crate::forecast::{FaultPathLoad, ForecastJob, Forecaster};
 use crate::persist;
+use crate::ros2::{Ros2Node, VesselPublishers};
 use crate::settings::{LiveTimeSettings, Settings};
 use crate::stats::{Counters, Refused};
 use crate::{
@@ -204,6 +205,10 @@ pub struct VesselTask {
     forecast_wanted: bool,
     /// A fix changed which deadline is the nearest: re-arm the timer.
     rearm_timer: bool,
+    /// The daemon's ROS 2 node, when enabled...
+    ros2_node: Option<Arc<Ros2Node>>,
+    /// ... and this vessel's ROS 2 publishers, declared at its first output.
+    ros2: OnceLock<Option<VesselPublishers>>,
 }
 
 /// The wall-clock instants the task's periodic work counts from.
@@ -284,6 +289,8 @@ pub struct VesselShared {
     pub load: FaultPathLoad,
     /// Counts (and logs, rate-limited) the calibration saves that failed.
     pub save_failures: SaveFailures,
+    /// The ROS 2 node, when `[ros2]` is enabled.
+    pub ros2: Option<Arc<Ros2Node>>,
 }
 
 impl VesselTask {
@@ -298,6 +305,7 @@ impl VesselTask {
             forecaster,
             load,
             save_failures,
+            ros2,
         } = shared.clone();
         let (twin_config, profile) = settings.twin_for(id.as_str());
         let mut twin =
@@ -352,6 +360,8 @@ impl VesselTask {
             forecast: None,
             forecast_wanted: false,
             rearm_timer: false,
+            ros2_node: ros2,
+            ros2: OnceLock::new(),
         }
     }
 
@@ -761,13 +771,8 @@ impl VesselTask {
         let vessel = self.id.as_str();
         let state = StateMessage::new(vessel, &out.state, false, self.replay);
         self.put_state(&state, p).await;
-        self.put_kept(
-            Topic::TwinFault,
-            Some(Kept::Fault),
-            &p.fault,
-            &FaultMessage::new(vessel, &out.faults, self.replay),
-        )
-        .await;
+        self.put_fault(&FaultMessage::new(vessel, &out.faults, self.replay), p)
+            .await;
         for change in &out.changes {
             self.publish_alarm(change, p).await;
         }
@@ -819,6 +824,9 @@ impl VesselTask {
 
     async fn publish_prediction(&self, json: Vec<u8>, p: &VesselKeys) {
         self.tap_out(Topic::TwinPrediction, &json);
+        if let Some(ros) = self.ros2_publishers() {
+            ros.prediction(&self.session, &json).await;
+        }
         if let Err(e) = self.put(&p.prediction, json).await {
             tracing::warn!(key = %p.prediction, "not published: {e}");
         }
@@ -834,6 +842,9 @@ impl VesselTask {
         self.tap_out(Topic::TwinState, &bytes);
         if let Err(e) = self.put(&p.state, bytes).await {
             tracing::warn!(vessel = self.id.as_str(), "state not published: {e}");
+        }
+        if let Some(ros) = self.ros2_publishers() {
+            ros.state(&self.session, state).await;
         }
     }
 
@@ -886,13 +897,34 @@ impl VesselTask {
         let msg = StateMessage::new(self.id.as_str(), &state, stale, self.replay);
         self.put_state(&msg, p).await;
         let faults = self.twin.fault_report(state.time_s);
-        self.put_kept(
-            Topic::TwinFault,
-            Some(Kept::Fault),
-            &p.fault,
+        self.put_fault(
             &FaultMessage::new(self.id.as_str(), &faults, self.replay),
+            p,
         )
         .await;
+    }
+
+    async fn put_fault(&self, fault: &FaultMessage, p: &VesselKeys) {
+        self.put_kept(Topic::TwinFault, Some(Kept::Fault), &p.fault, fault)
+            .await;
+        if let Some(ros) = self.ros2_publishers() {
+            ros.fault(&self.session, fault).await;
+        }
+    }
+
+    /// This vessel's ROS 2 publishers, declared on the first call; `None`
+    /// when `[ros2]` is off (or Zenoh refused the keys, which is logged).
+    fn ros2_publishers(&self) -> Option<&VesselPublishers> {
+        let node = self.ros2_node.as_ref()?;
+        self.ros2
+            .get_or_init(|| {
+                VesselPublishers::declare(node, &self.session, self.id.as_str())
+                    .map_err(|e| {
+                        tracing::error!(vessel = self.id.as_str(), "no ROS 2 publishers: {e}")
+                    })
+                    .ok()
+            })
+            .as_ref()
     }
 
     async fn check_stale(&mut self, p: &VesselKeys) {
