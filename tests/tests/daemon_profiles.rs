@@ -51,7 +51,7 @@ async fn each_vessel_runs_on_the_profile_its_rule_names() {
         expected("otter-1", &on_otter),
     );
     // The two profiles tell the trial apart.
-    let gap = (work.thrusters.port.loss - otter.thrusters.port.loss).abs();
+    let gap = (work.thrusters.port.loss.unwrap() - otter.thrusters.port.loss.unwrap()).abs();
     assert!(gap > 0.01, "{gap}");
 
     let rig = rig(settings).await;
