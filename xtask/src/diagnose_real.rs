@@ -12,7 +12,6 @@
 
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
-use twin_wire::profile::VesselProfile;
 
 use twin_core::diagnose::{COMPONENTS, DiagnoseConfig};
 use twin_wire::SourceChoice;
@@ -21,6 +20,7 @@ use twin_wire::read::OpenError;
 
 use crate::real_logs::files_by_name;
 use twin_cli::diagnose::{DiagnoseError, DiagnoseReport, diagnose_path};
+use twin_wire::profile::VesselProfile;
 
 /// Why the report failed.
 #[derive(Debug, thiserror::Error)]

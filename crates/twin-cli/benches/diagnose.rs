@@ -13,12 +13,12 @@ use std::hint::black_box;
 use std::io::BufReader;
 use std::path::PathBuf;
 use std::time::Duration;
-use twin_wire::profile::VesselProfile;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use twin_cli::diagnose::{LoadedLog, diagnose_loaded, load};
 use twin_core::diagnose::DiagnoseConfig;
 use twin_wire::SourceChoice;
+use twin_wire::profile::VesselProfile;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")

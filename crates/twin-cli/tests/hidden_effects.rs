@@ -10,7 +10,6 @@
 mod hidden;
 
 use hidden::{Hidden, judge};
-use twin_wire::profile::VesselProfile;
 
 use std::io::Cursor;
 use std::path::Path;
@@ -22,6 +21,7 @@ use twin_cli::simulate::{OutputFormat, simulate_to_bytes};
 use twin_core::diagnose::DiagnoseConfig;
 use twin_sim::{CurrentSpec, Scenario};
 use twin_wire::SourceChoice;
+use twin_wire::profile::VesselProfile;
 
 fn base() -> Scenario {
     let path = concat!(

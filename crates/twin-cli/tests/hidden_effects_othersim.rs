@@ -33,7 +33,6 @@
 mod hidden;
 
 use hidden::{Hidden, judge};
-use twin_wire::profile::VesselProfile;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -43,6 +42,7 @@ use rand::{Rng, SeedableRng};
 use twin_cli::diagnose::{DiagnoseReport, diagnose_path};
 use twin_core::diagnose::DiagnoseConfig;
 use twin_wire::SourceChoice;
+use twin_wire::profile::VesselProfile;
 
 /// The independent simulator.
 const SIMULATOR: &str = concat!(
