@@ -9,6 +9,7 @@
 //!   validation into `twin_core` samples, and their encoders.
 //! - [`outputs`]: the twin's output payloads (state, fault, prediction,
 //!   alarm, stats).
+//! - [`schema`]: the JSON Schemas of every payload, from the types.
 //! - [`measurement`]: [`Record`], the typed, time-stamped SI measurement
 //!   every log reader emits.
 //! - [`read`]: streaming readers of NMEA 0183, canboat NMEA 2000 text and
@@ -30,6 +31,7 @@ pub mod measurement;
 pub mod messages;
 pub mod outputs;
 pub mod read;
+pub mod schema;
 pub mod time;
 pub mod write;
 
