@@ -50,6 +50,42 @@ pub fn angle_error(a: f64, b: f64) -> f64 {
     wrap_pi(a - b)
 }
 
+/// The independent peers a test needs (a program, a Python module),
+/// installed by `.ci/run` and the README's test command: a test whose peer
+/// is missing fails, naming the command that installs it.
+pub mod peers {
+    use std::path::PathBuf;
+    use std::process::Command;
+
+    /// Fails the test, saying how to install a missing peer.
+    pub fn missing(what: &str, install: &str) -> ! {
+        panic!(
+            "{what} is missing: this test needs it as an independent peer. Install it with `{install}` (.ci/run does)."
+        )
+    }
+
+    /// A program on PATH (or in `/usr/sbin`, `/sbin`), or a loud failure.
+    pub fn require_program(program: &str, install: &str) -> PathBuf {
+        let paths = std::env::var_os("PATH").unwrap_or_default();
+        std::env::split_paths(&paths)
+            .chain(["/usr/sbin".into(), "/sbin".into()])
+            .map(|p| p.join(program))
+            .find(|p| p.is_file())
+            .unwrap_or_else(|| missing(program, install))
+    }
+
+    /// A Python module importable by `python`, or a loud failure.
+    pub fn require_python_module(python: &str, module: &str, install: &str) {
+        let ok = Command::new(python)
+            .args(["-c", &format!("import {module}")])
+            .status()
+            .is_ok_and(|s| s.success());
+        if !ok {
+            missing(&format!("the Python module {module} ({python})"), install);
+        }
+    }
+}
+
 /// In-process Zenoh for end-to-end tests: loopback only, no multicast
 /// scouting, peers connected explicitly.
 pub mod net {

@@ -6,9 +6,6 @@
 //! of PyPI's `jsonschema` (`tests/schemas/validate.py`) checks each against
 //! its schema.
 
-#[path = "../../crates/twin-bridge/tests/common/mod.rs"]
-mod common;
-
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -16,6 +13,7 @@ use std::time::Duration;
 
 use twin_core::diagnose::MonitorConfig;
 use twin_tests::daemon::{drain, rig};
+use twin_tests::peers::require_python_module;
 use twin_tests::wire::{messages, offline, receive_until, receive_until_fault, scenario};
 use twin_wire::outputs::FaultMessage;
 use twind::settings::Settings;
@@ -129,7 +127,7 @@ async fn published_payloads() -> BTreeMap<String, Vec<Vec<u8>>> {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn every_payload_the_daemon_publishes_validates_against_its_schema() {
-    common::require_python_module("python3", "jsonschema", INSTALL);
+    require_python_module("python3", "jsonschema", INSTALL);
     let payloads = published_payloads().await;
     let schemas: Vec<&str> = twin_wire::schema::all().iter().map(|s| s.name).collect();
     let seen: Vec<&str> = payloads.keys().map(String::as_str).collect();
@@ -158,7 +156,7 @@ async fn every_payload_the_daemon_publishes_validates_against_its_schema() {
 /// for a number) are each refused.
 #[test]
 fn the_validator_refuses_payloads_that_break_the_contract() {
-    common::require_python_module("python3", "jsonschema", INSTALL);
+    require_python_module("python3", "jsonschema", INSTALL);
     let fault: serde_json::Value = serde_json::json!({
         "vessel": "v", "time": "2026-01-01T00:00:00Z",
         "thrusters": {

@@ -8,6 +8,7 @@
 //!   through an embedded peer.
 //! - [`forecast`]: the forecast threads, off the fault path.
 //! - [`persist`]: calibration files saved and restored per vessel.
+//! - [`metrics`]: the Prometheus metrics (`GET /metrics`).
 //! - [`stats`]: counting and rate-limited logging of rejections.
 //! - [`web`]: the operator's page (HTTP and server-sent events), served
 //!   from the outputs the daemon publishes.
@@ -37,6 +38,7 @@
 pub mod demo;
 mod dispatch;
 pub mod forecast;
+pub mod metrics;
 pub mod persist;
 pub mod settings;
 pub mod stats;
@@ -315,6 +317,8 @@ pub struct RunConfig {
     /// Whether the fault path keeps up; the forecast threads yield to it and
     /// the caller can read it.
     pub load: crate::forecast::FaultPathLoad,
+    /// The daemon's metrics, filled by the run (the caller serves them).
+    pub metrics: crate::metrics::Metrics,
 }
 
 impl RunConfig {
@@ -327,6 +331,7 @@ impl RunConfig {
             tap: None,
             latest: LatestStates::default(),
             load: crate::forecast::FaultPathLoad::new(),
+            metrics: crate::metrics::Metrics::default(),
         }
     }
 }
@@ -341,6 +346,7 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         tap,
         latest,
         load,
+        metrics,
     } = config;
     let settings = Arc::new(settings);
     let daemon_id = match &settings.daemon.id {
@@ -381,11 +387,18 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
                 tap,
                 diagnose_slots,
                 forecaster,
-                load,
+                load: load.clone(),
                 save_failures: save_failures.clone(),
+                metrics: metrics.clone(),
             },
             done_tx,
         },
+    );
+    metrics.attach(
+        daemon_id.clone(),
+        dispatcher.clone(),
+        save_failures.clone(),
+        load,
     );
     let subscriber = {
         let dispatcher = dispatcher.clone();

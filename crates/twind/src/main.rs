@@ -55,6 +55,10 @@ struct Cli {
     /// No web page, not even in --demo or with `web.enabled` in the settings.
     #[arg(long, conflicts_with_all = ["web", "web_listen"])]
     no_web: bool,
+    /// Serve the Prometheus metrics (`/metrics`) alone on this address
+    /// (overrides `[metrics] listen`); they are also on the web page's port.
+    #[arg(long, value_name = "ADDR")]
+    metrics_listen: Option<SocketAddr>,
     #[command(flatten)]
     zenoh: ZenohArgs,
 }
@@ -90,6 +94,9 @@ fn settings(cli: &Cli) -> anyhow::Result<Settings> {
     };
     if let Some(dir) = &cli.state_dir {
         s.persistence.dir = Some(dir.clone());
+    }
+    if let Some(listen) = cli.metrics_listen {
+        s.metrics.listen = Some(listen);
     }
     if let Some(id) = &cli.id {
         twin_wire::keys::validate_vessel_id(id).with_context(|| format!("--id {id:?}"))?;
@@ -160,6 +167,16 @@ async fn main() -> anyhow::Result<()> {
     let token = CancellationToken::new();
     tokio::spawn(shutdown_signal(token.clone()));
     let latest = twind::LatestStates::default();
+    let metrics = twind::metrics::Metrics::default();
+    let metrics_server = match settings.metrics.listen {
+        Some(listen) => {
+            let (local, task) =
+                twind::metrics::serve(listen, metrics.clone(), token.clone()).await?;
+            println!("twind metrics: http://{local}/metrics");
+            Some(task)
+        }
+        None => None,
+    };
     let (tap, page) = match web_listen(&cli, &settings)? {
         Some(listen) => {
             let (tx, _) = tokio::sync::broadcast::channel(WEB_TAP_CAPACITY);
@@ -173,6 +190,7 @@ async fn main() -> anyhow::Result<()> {
                     max_payload_bytes: settings.max_payload_bytes,
                 }),
                 info: web::WebInfo::new(&settings),
+                metrics: metrics.clone(),
             };
             match web::start(listen, sources, token.clone()).await {
                 Ok(page) => {
@@ -203,6 +221,7 @@ async fn main() -> anyhow::Result<()> {
             options,
             tap,
             latest,
+            metrics,
             token.clone(),
         )
         .await
@@ -224,6 +243,7 @@ async fn main() -> anyhow::Result<()> {
         twind::run(twind::RunConfig {
             tap,
             latest,
+            metrics,
             ..twind::RunConfig::new(settings, session.clone(), token.clone())
         })
         .await
@@ -237,6 +257,9 @@ async fn main() -> anyhow::Result<()> {
             );
         }
         page.stopped(Duration::from_secs(2)).await;
+    }
+    if let Some(task) = metrics_server {
+        let _ = tokio::time::timeout(Duration::from_secs(2), task).await;
     }
     // The session closes last, after every vessel has said its last words.
     if let Err(e) = session.close().await {

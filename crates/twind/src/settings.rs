@@ -56,6 +56,8 @@ struct RawSettings {
     #[serde(default)]
     web: RawWeb,
     #[serde(default)]
+    metrics: RawMetrics,
+    #[serde(default)]
     twin: RawTwin,
     #[serde(default)]
     diagnose: RawDiagnose,
@@ -132,6 +134,12 @@ struct RawPersistence {
 #[serde(deny_unknown_fields)]
 struct RawWeb {
     enabled: Option<bool>,
+    listen: Option<String>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMetrics {
     listen: Option<String>,
 }
 
@@ -240,6 +248,14 @@ pub struct WebSettings {
     pub listen: String,
 }
 
+/// The Prometheus metrics' own listener (they are also on the web page's
+/// port when the page is served).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct MetricsSettings {
+    /// Serve `/metrics` alone on this address.
+    pub listen: Option<std::net::SocketAddr>,
+}
+
 /// The live residual monitor (`twin diagnose` on each vessel's recent past).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DiagnoseSettings {
@@ -271,6 +287,8 @@ pub struct Settings {
     pub persistence: PersistenceSettings,
     /// Web page.
     pub web: WebSettings,
+    /// The metrics' own listener.
+    pub metrics: MetricsSettings,
     /// The twin each vessel runs.
     pub twin: TwinConfig,
     /// The live residual monitor.
@@ -420,6 +438,15 @@ impl Settings {
                 reason: format!("{:?} is not an address such as 127.0.0.1:8080", web.listen),
             });
         }
+        let metrics = MetricsSettings {
+            listen: match raw.metrics.listen {
+                Some(a) => Some(a.parse().map_err(|_| SettingsError::Invalid {
+                    key: "metrics.listen",
+                    reason: format!("{a:?} is not an address such as 127.0.0.1:9464"),
+                })?),
+                None => None,
+            },
+        };
         let twin = twin_config(&raw.twin)?;
         let diagnose = diagnose_settings(&raw.diagnose)?;
         Ok(Self {
@@ -431,6 +458,7 @@ impl Settings {
             daemon,
             persistence,
             web,
+            metrics,
             twin,
             diagnose,
         })
@@ -681,6 +709,7 @@ mod tests {
                 "input.max_payload_bytes",
             ),
             ("[web]\nlisten = \"nowhere\"\n", "web.listen"),
+            ("[metrics]\nlisten = \"nowhere\"\n", "metrics.listen"),
             (
                 "[twin]\nsuspect_loss = 0.5\nfault_loss = 0.2\n",
                 "twin.suspect_loss",

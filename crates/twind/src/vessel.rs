@@ -51,6 +51,7 @@ use zenoh::qos::CongestionControl;
 use zenoh::{Session, Wait};
 
 use crate::forecast::{FaultPathLoad, ForecastJob, Forecaster};
+use crate::metrics::{Metrics, Update};
 use crate::persist;
 use crate::settings::{LiveTimeSettings, Settings};
 use crate::stats::{Counters, Refused};
@@ -175,6 +176,7 @@ pub struct VesselTask {
     outputs_slot: OnceLock<OutputSlot>,
     tap: OutputTap,
     save_failures: SaveFailures,
+    metrics: Metrics,
     twin: VesselTwin,
     nmea: NmeaDecoder,
     assembler: FixAssembler,
@@ -279,6 +281,8 @@ pub struct VesselShared {
     pub load: FaultPathLoad,
     /// Counts (and logs, rate-limited) the calibration saves that failed.
     pub save_failures: SaveFailures,
+    /// The daemon's metrics (the fleet's counts, the estimator's time).
+    pub metrics: Metrics,
 }
 
 impl VesselTask {
@@ -293,6 +297,7 @@ impl VesselTask {
             forecaster,
             load,
             save_failures,
+            metrics,
         } = shared.clone();
         let mut twin =
             VesselTwin::new(settings.twin).expect("the settings' twin configuration was validated");
@@ -328,7 +333,8 @@ impl VesselTask {
             twin,
             nmea: NmeaDecoder::new(ReadOptions::default()),
             assembler,
-            counters: Counters::default(),
+            counters: Counters::for_fleet(metrics.fleet()),
+            metrics,
             replay: false,
             last_prediction_time_s: None,
             last_fix_wall: None,
@@ -653,7 +659,10 @@ impl VesselTask {
 
     /// Shaft speeds to the twin (and, once taken, to the live monitor).
     fn on_propellers(&mut self, speeds: &PropellerSpeeds) -> Result<(), Rejection> {
-        self.twin.on_propellers(speeds)?;
+        let started = Instant::now();
+        let taken = self.twin.on_propellers(speeds);
+        self.metrics.observe(Update::Propellers, started.elapsed());
+        taken?;
         if let Some(m) = self.monitor.as_mut() {
             m.push(DiagEvent::Propellers(*speeds));
         }
@@ -662,7 +671,10 @@ impl VesselTask {
 
     /// A fix to the twin; once taken, its outputs are published.
     async fn on_fix(&mut self, fix: &GnssFix, p: &VesselKeys) -> Result<(), Rejection> {
-        let out = self.twin.on_gnss(fix)?;
+        let started = Instant::now();
+        let taken = self.twin.on_gnss(fix);
+        self.metrics.observe(Update::Fix, started.elapsed());
+        let out = taken?;
         // The armed timer was set without a stale or a save deadline.
         self.rearm_timer |= self.stale_published || !self.unsaved || self.last_fix_wall.is_none();
         self.last_fix_wall = Some(Instant::now());

@@ -23,6 +23,7 @@
 //! - `GET /api/info`: the daemon's version and the settings the page draws
 //!   (decision levels, forecast horizon).
 //! - `GET /healthz`: `ok`.
+//! - `GET /metrics`: the daemon's Prometheus metrics ([`crate::metrics`]).
 //!
 //! # Never blocking the daemon
 //! The daemon copies every output into a `tokio::sync::broadcast` channel
@@ -174,6 +175,8 @@ pub struct Sources {
     pub inputs: Option<InputFeed>,
     /// What the page is told.
     pub info: WebInfo,
+    /// The daemon's metrics, served on `/metrics`.
+    pub metrics: crate::metrics::Metrics,
 }
 
 /// One event for the page.
@@ -622,10 +625,12 @@ pub async fn start(
         .route("/api/history/{vessel}", get(history))
         .route("/api/info", get(info))
         .route("/healthz", get(|| async { "ok" }))
+        .route("/metrics", get(metrics))
         .fallback(asset)
         .with_state(AppState {
             hub: hub.clone(),
             shutdown: shutdown.clone(),
+            metrics: sources.metrics,
         })
         .layer(axum::middleware::map_response(common_headers));
     let task = tokio::spawn(async move {
@@ -647,6 +652,7 @@ pub async fn start(
 struct AppState {
     hub: Arc<Hub>,
     shutdown: CancellationToken,
+    metrics: crate::metrics::Metrics,
 }
 
 async fn common_headers(mut r: Response) -> Response {
@@ -722,6 +728,25 @@ async fn history(State(app): State<AppState>, Path(vessel): Path<String>) -> Res
         Some(body) => json_response(body),
         None => (StatusCode::NOT_FOUND, "no such vessel\n").into_response(),
     }
+}
+
+/// The daemon's metrics and the page's own (events skipped).
+async fn metrics(State(app): State<AppState>) -> Response {
+    let mut text = app.metrics.render();
+    crate::metrics::counter(
+        &mut text,
+        "twind_page_events_skipped_total",
+        "Events of the web page skipped for pages that read too slowly.",
+        app.hub.skipped.load(Ordering::Relaxed),
+    );
+    (
+        [
+            (header::CONTENT_TYPE, crate::metrics::CONTENT_TYPE),
+            (header::CACHE_CONTROL, "no-store"),
+        ],
+        text,
+    )
+        .into_response()
 }
 
 async fn info(State(app): State<AppState>) -> Response {

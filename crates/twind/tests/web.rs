@@ -45,6 +45,7 @@ async fn serve(latest: LatestStates) -> Server {
         latest,
         inputs: None,
         info: info(),
+        metrics: twind::metrics::Metrics::default(),
     };
     let server = web::start("127.0.0.1:0".parse().unwrap(), sources, stop.clone())
         .await
