@@ -73,10 +73,9 @@ async fn published_payloads() -> BTreeMap<String, Vec<Vec<u8>>> {
     let mut sc = scenario("demo_broken-port");
     sc.seed = 73;
     let msgs = messages(&twin_sim::simulate(&sc).unwrap());
-    let mut settings = Settings::from_toml(
-        "[daemon]\nid = \"schemas\"\n[publish]\nstats_interval_s = 0.5\n",
-    )
-    .unwrap();
+    let mut settings =
+        Settings::from_toml("[daemon]\nid = \"schemas\"\n[publish]\nstats_interval_s = 0.5\n")
+            .unwrap();
     // One diagnosis, of 120 s, once 120 s are held.
     settings.diagnose.monitor = MonitorConfig {
         window_s: 120.0,
@@ -99,7 +98,10 @@ async fn published_payloads() -> BTreeMap<String, Vec<Vec<u8>>> {
     rig.publish("schema-1", &msgs).await;
     let mut samples: Vec<Sample> = receive_until_fault(&sub, &last.time).await;
     for topic in ["/twin/finding", "/twin/stats"] {
-        if !samples.iter().any(|s| s.key_expr().as_str().ends_with(topic)) {
+        if !samples
+            .iter()
+            .any(|s| s.key_expr().as_str().ends_with(topic))
+        {
             samples.extend(
                 receive_until(&sub, Duration::from_secs(120), |s| {
                     s.key_expr().as_str().ends_with(topic)

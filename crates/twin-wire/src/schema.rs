@@ -51,8 +51,7 @@ impl PayloadSchema {
 
     /// The file's text: the schema as indented JSON with a final newline.
     pub fn file_text(&self) -> String {
-        let mut text =
-            serde_json::to_string_pretty(&self.schema).expect("a schema is plain JSON");
+        let mut text = serde_json::to_string_pretty(&self.schema).expect("a schema is plain JSON");
         text.push('\n');
         text
     }
@@ -134,7 +133,10 @@ mod tests {
             .map(|v| v.as_str().unwrap())
             .collect();
         for field in ["vessel", "time", "heading_rad", "current", "stale", "sigma"] {
-            assert!(required.contains(&field), "{field} not required: {required:?}");
+            assert!(
+                required.contains(&field),
+                "{field} not required: {required:?}"
+            );
         }
         assert_eq!(state["additionalProperties"], Value::Bool(false));
         // The stats' NMEA block is left out when empty: not required.
@@ -154,8 +156,14 @@ mod tests {
             .map(|v| v.as_str().unwrap())
             .collect();
         required.sort_unstable();
-        assert_eq!(required, ["cog_rad", "lat_deg", "lon_deg", "sog_mps", "time"]);
-        assert!(gnss.get("additionalProperties").is_none(), "unknown fields are ignored");
+        assert_eq!(
+            required,
+            ["cog_rad", "lat_deg", "lon_deg", "sog_mps", "time"]
+        );
+        assert!(
+            gnss.get("additionalProperties").is_none(),
+            "unknown fields are ignored"
+        );
         assert_eq!(gnss["properties"]["lat_deg"]["maximum"], Value::from(90.0));
     }
 }

@@ -16,9 +16,8 @@ fn every_committed_schema_is_the_generated_one() {
     let schemas = twin_wire::schema::all();
     for s in &schemas {
         let path = dir.join(s.file_name());
-        let committed = std::fs::read_to_string(&path).unwrap_or_else(|e| {
-            panic!("{}: {e}; run `cargo xtask schemas`", path.display())
-        });
+        let committed = std::fs::read_to_string(&path)
+            .unwrap_or_else(|e| panic!("{}: {e}; run `cargo xtask schemas`", path.display()));
         assert!(
             committed == s.file_text(),
             "{} differs from the schema its type generates; run `cargo xtask schemas` and commit it",

@@ -9,6 +9,7 @@
 //! - [`forecast`]: the forecast threads, off the fault path.
 //! - [`persist`]: calibration files saved and restored per vessel.
 //! - [`metrics`]: the Prometheus metrics (`GET /metrics`).
+//! - [`notify`]: systemd's notifications (ready, watchdog, stopping).
 //! - [`stats`]: counting and rate-limited logging of rejections.
 //! - [`web`]: the operator's page (HTTP and server-sent events), served
 //!   from the outputs the daemon publishes.
@@ -39,6 +40,7 @@ pub mod demo;
 mod dispatch;
 pub mod forecast;
 pub mod metrics;
+pub mod notify;
 pub mod persist;
 pub mod settings;
 pub mod stats;
@@ -319,6 +321,9 @@ pub struct RunConfig {
     pub load: crate::forecast::FaultPathLoad,
     /// The daemon's metrics, filled by the run (the caller serves them).
     pub metrics: crate::metrics::Metrics,
+    /// Tells systemd when the daemon serves, that it lives, and when it
+    /// stops (disabled unless the caller enables it).
+    pub notify: crate::notify::Notifier,
 }
 
 impl RunConfig {
@@ -332,6 +337,7 @@ impl RunConfig {
             latest: LatestStates::default(),
             load: crate::forecast::FaultPathLoad::new(),
             metrics: crate::metrics::Metrics::default(),
+            notify: crate::notify::Notifier::disabled(),
         }
     }
 }
@@ -347,6 +353,7 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         latest,
         load,
         metrics,
+        notify,
     } = config;
     let settings = Arc::new(settings);
     let daemon_id = match &settings.daemon.id {
@@ -447,9 +454,21 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         settings.publish.stats_interval_s,
     ));
     stats_tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut watchdog_tick = notify.watchdog_interval().map(|every| {
+        let mut tick = tokio::time::interval(every);
+        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        tick
+    });
+    notify.ready();
     loop {
         tokio::select! {
             _ = shutdown.cancelled() => break,
+            () = watchdog_due(&mut watchdog_tick) => {
+                // Alive: this loop runs and the dispatcher's lock is free
+                // (the subscriber's callback is not stuck holding it).
+                let _ = dispatcher.queues();
+                notify.watchdog();
+            }
             Some(done) = done_rx.recv() => {
                 let mut ended = vec![done];
                 while let Ok(done) = done_rx.try_recv() {
@@ -461,6 +480,7 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         }
     }
 
+    notify.stopping();
     // Stop reading first (every sample Zenoh delivered has been routed by
     // the callback), then close the vessels' queues and let every vessel
     // finish.
@@ -483,6 +503,16 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         "twind stopped"
     );
     Ok(summary)
+}
+
+/// The next watchdog tick, or never when systemd does not watch.
+async fn watchdog_due(tick: &mut Option<tokio::time::Interval>) {
+    match tick {
+        Some(t) => {
+            t.tick().await;
+        }
+        None => std::future::pending().await,
+    }
 }
 
 /// Answers queries on the latest outputs' queryable from the shared maps,

@@ -244,6 +244,7 @@ async fn main() -> anyhow::Result<()> {
             tap,
             latest,
             metrics,
+            notify: twind::notify::Notifier::from_env(),
             ..twind::RunConfig::new(settings, session.clone(), token.clone())
         })
         .await

@@ -256,12 +256,36 @@ impl Metrics {
             &stats.refused,
         );
         let gauges = [
-            ("twind_vessels", "Vessels admitted and running.", stats.vessels as u64),
-            ("twind_vessels_max", "The most vessels served at once ([vessels] max_vessels).", stats.max_vessels as u64),
-            ("twind_queued_events", "Events waiting in the vessels' queues, in all.", queues.queued),
-            ("twind_queued_events_max", "Events waiting in the fullest vessel queue.", queues.deepest),
-            ("twind_queue_capacity", "Events one vessel's queue holds ([vessels] queue_depth).", queues.capacity),
-            ("twind_events_in_flight", "Events routed to the vessels and not yet handled.", d.load.in_flight()),
+            (
+                "twind_vessels",
+                "Vessels admitted and running.",
+                stats.vessels as u64,
+            ),
+            (
+                "twind_vessels_max",
+                "The most vessels served at once ([vessels] max_vessels).",
+                stats.max_vessels as u64,
+            ),
+            (
+                "twind_queued_events",
+                "Events waiting in the vessels' queues, in all.",
+                queues.queued,
+            ),
+            (
+                "twind_queued_events_max",
+                "Events waiting in the fullest vessel queue.",
+                queues.deepest,
+            ),
+            (
+                "twind_queue_capacity",
+                "Events one vessel's queue holds ([vessels] queue_depth).",
+                queues.capacity,
+            ),
+            (
+                "twind_events_in_flight",
+                "Events routed to the vessels and not yet handled.",
+                d.load.in_flight(),
+            ),
         ];
         for (name, help, value) in gauges {
             header(out, name, "gauge", help);

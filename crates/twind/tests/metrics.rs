@@ -71,7 +71,10 @@ fn scrape(addr: SocketAddr) -> (String, String) {
     let mut raw = String::new();
     s.read_to_string(&mut raw).unwrap();
     let (head, body) = raw.split_once("\r\n\r\n").expect("an HTTP response");
-    assert!(head.starts_with("HTTP/1.0 200") || head.starts_with("HTTP/1.1 200"), "{head}");
+    assert!(
+        head.starts_with("HTTP/1.0 200") || head.starts_with("HTTP/1.1 200"),
+        "{head}"
+    );
     let content_type = head
         .lines()
         .find_map(|l| l.strip_prefix("content-type: "))
@@ -144,7 +147,10 @@ async fn metrics_count_what_the_daemon_received_and_promtool_accepts_them() {
     let mut text;
     loop {
         text = scrape(twind.metrics).1;
-        let received = value(&text, "twind_vessel_messages_received_total{topic=\"gnss\"}");
+        let received = value(
+            &text,
+            "twind_vessel_messages_received_total{topic=\"gnss\"}",
+        );
         let refused = value(&text, "twind_messages_refused_total{reason=\"bad_key\"}");
         if (received == Some(6.0) && refused == Some(1.0)) || Instant::now() > deadline {
             break;
@@ -163,19 +169,43 @@ async fn metrics_count_what_the_daemon_received_and_promtool_accepts_them() {
         ("twind_queue_capacity", 256.0),
         ("twind_queued_events", 0.0),
         ("twind_vessel_messages_received_total{topic=\"gnss\"}", 6.0),
-        ("twind_vessel_messages_received_total{topic=\"actuators\"}", 0.0),
-        ("twind_vessel_messages_accepted_total{topic=\"gnss\"}", GOOD_FIXES as f64),
-        ("twind_vessel_messages_rejected_total{reason=\"bad_json\"}", 1.0),
-        ("twind_estimator_update_seconds_count{input=\"fix\"}", GOOD_FIXES as f64),
-        ("twind_estimator_update_seconds_bucket{input=\"fix\",le=\"+Inf\"}", GOOD_FIXES as f64),
-        ("twind_estimator_update_seconds_count{input=\"propellers\"}", 0.0),
+        (
+            "twind_vessel_messages_received_total{topic=\"actuators\"}",
+            0.0,
+        ),
+        (
+            "twind_vessel_messages_accepted_total{topic=\"gnss\"}",
+            GOOD_FIXES as f64,
+        ),
+        (
+            "twind_vessel_messages_rejected_total{reason=\"bad_json\"}",
+            1.0,
+        ),
+        (
+            "twind_estimator_update_seconds_count{input=\"fix\"}",
+            GOOD_FIXES as f64,
+        ),
+        (
+            "twind_estimator_update_seconds_bucket{input=\"fix\",le=\"+Inf\"}",
+            GOOD_FIXES as f64,
+        ),
+        (
+            "twind_estimator_update_seconds_count{input=\"propellers\"}",
+            0.0,
+        ),
         ("twind_calibration_save_failures_total", 0.0),
     ];
     for (series, want) in expected {
         assert_eq!(value(&text, series), Some(want), "{series}");
     }
-    for family in ["twind_messages_received_total", "twind_estimator_update_seconds"] {
-        assert!(text.contains(&format!("# HELP {family} ")), "no HELP for {family}");
+    for family in [
+        "twind_messages_received_total",
+        "twind_estimator_update_seconds",
+    ] {
+        assert!(
+            text.contains(&format!("# HELP {family} ")),
+            "no HELP for {family}"
+        );
     }
     assert!(text.contains("# TYPE twind_estimator_update_seconds histogram"));
 
@@ -186,10 +216,16 @@ async fn metrics_count_what_the_daemon_received_and_promtool_accepts_them() {
     let (content_type, page_text) = scrape(twind.page);
     assert_eq!(content_type, "text/plain; version=0.0.4; charset=utf-8");
     assert_eq!(
-        value(&page_text, "twind_vessel_messages_accepted_total{topic=\"gnss\"}"),
+        value(
+            &page_text,
+            "twind_vessel_messages_accepted_total{topic=\"gnss\"}"
+        ),
         Some(GOOD_FIXES as f64)
     );
-    assert_eq!(value(&page_text, "twind_page_events_skipped_total"), Some(0.0));
+    assert_eq!(
+        value(&page_text, "twind_page_events_skipped_total"),
+        Some(0.0)
+    );
     let (ok, said) = promtool(&page_text);
     assert!(ok, "promtool refuses the page's metrics: {said}");
     client.close().await.unwrap();
