@@ -1,7 +1,9 @@
 //! `twind`: parses the command line, starts tracing, loads the settings and
 //! Zenoh's configuration, opens the session, starts the web page when asked
 //! (`--web`, `--web-listen`, `[web]` in the settings; on by default in
-//! `--demo` unless `--no-web`), and runs the daemon (or the demo) until
+//! `--demo` unless `--no-web`) and the metrics' own port when asked
+//! (`--metrics-listen`, `[metrics] listen`), and runs the daemon (or the
+//! demo, which tells systemd nothing) until
 //! SIGINT or SIGTERM (a demo at a terminal keeps its page up after the
 //! trials, until Ctrl-C); the web page stops with the daemon, and the Zenoh
 //! session is closed last.
@@ -146,6 +148,51 @@ async fn shutdown_signal(token: CancellationToken) {
     token.cancel();
 }
 
+/// The web page, when asked for: the output tap the daemon copies into and
+/// the running server.
+async fn start_page(
+    cli: &Cli,
+    settings: &Settings,
+    session: &zenoh::Session,
+    latest: &twind::LatestStates,
+    metrics: &twind::metrics::Metrics,
+    token: &CancellationToken,
+) -> anyhow::Result<(twind::OutputTap, Option<web::WebServer>)> {
+    Ok(match web_listen(cli, settings)? {
+        Some(listen) => {
+            let (tx, _) = tokio::sync::broadcast::channel(WEB_TAP_CAPACITY);
+            let sources = web::Sources {
+                tap: tx.clone(),
+                latest: latest.clone(),
+                inputs: Some(web::InputFeed {
+                    session: session.clone(),
+                    keys: settings.keys.clone(),
+                    own: settings.vessels.own.clone(),
+                    max_payload_bytes: settings.max_payload_bytes,
+                }),
+                info: web::WebInfo::new(settings),
+                metrics: metrics.clone(),
+            };
+            match web::start(listen, sources, token.clone()).await {
+                Ok(page) => {
+                    println!("twind web page: {}", page.url());
+                    (Some(tx), Some(page))
+                }
+                // The demo's page is a default, not a request: without it
+                // the demo still runs.
+                Err(e) if cli.demo && cli.web_listen.is_none() && !cli.web => {
+                    tracing::warn!(
+                        "{e:#}; the demo runs without its page (--web-listen ADDR picks another address)"
+                    );
+                    (None, None)
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        None => (None, None),
+    })
+}
+
 #[tokio::main]
 async fn main() -> anyhow::Result<()> {
     tracing_subscriber::fmt()
@@ -177,39 +224,7 @@ async fn main() -> anyhow::Result<()> {
         }
         None => None,
     };
-    let (tap, page) = match web_listen(&cli, &settings)? {
-        Some(listen) => {
-            let (tx, _) = tokio::sync::broadcast::channel(WEB_TAP_CAPACITY);
-            let sources = web::Sources {
-                tap: tx.clone(),
-                latest: latest.clone(),
-                inputs: Some(web::InputFeed {
-                    session: session.clone(),
-                    keys: settings.keys.clone(),
-                    own: settings.vessels.own.clone(),
-                    max_payload_bytes: settings.max_payload_bytes,
-                }),
-                info: web::WebInfo::new(&settings),
-                metrics: metrics.clone(),
-            };
-            match web::start(listen, sources, token.clone()).await {
-                Ok(page) => {
-                    println!("twind web page: {}", page.url());
-                    (Some(tx), Some(page))
-                }
-                // The demo's page is a default, not a request: without it
-                // the demo still runs.
-                Err(e) if cli.demo && cli.web_listen.is_none() && !cli.web => {
-                    tracing::warn!(
-                        "{e:#}; the demo runs without its page (--web-listen ADDR picks another address)"
-                    );
-                    (None, None)
-                }
-                Err(e) => return Err(e),
-            }
-        }
-        None => (None, None),
-    };
+    let (tap, page) = start_page(&cli, &settings, &session, &latest, &metrics, &token).await?;
     let result = if cli.demo {
         let options = twind::demo::DemoOptions {
             rate: cli.demo_rate,
