@@ -50,6 +50,57 @@ pub fn angle_error(a: f64, b: f64) -> f64 {
     wrap_pi(a - b)
 }
 
+/// The independent peers a test needs (a program, a Python module),
+/// installed by `.ci/run` and the README's test command: a test whose peer
+/// is missing fails, naming the command that installs it.
+pub mod peers {
+    use std::path::PathBuf;
+    use std::process::Command;
+
+    /// Fails the test, saying how to install a missing peer.
+    pub fn missing(what: &str, install: &str) -> ! {
+        panic!(
+            "{what} is missing: this test needs it as an independent peer. Install it with `{install}` (.ci/run does)."
+        )
+    }
+
+    /// A program on PATH (or in `/usr/sbin`, `/sbin`), or a loud failure.
+    pub fn require_program(program: &str, install: &str) -> PathBuf {
+        let paths = std::env::var_os("PATH").unwrap_or_default();
+        std::env::split_paths(&paths)
+            .chain(["/usr/sbin".into(), "/sbin".into()])
+            .map(|p| p.join(program))
+            .find(|p| p.is_file())
+            .unwrap_or_else(|| missing(program, install))
+    }
+
+    /// A Python module importable by `python`, or a loud failure.
+    pub fn require_python_module(python: &str, module: &str, install: &str) {
+        let ok = Command::new(python)
+            .args(["-c", &format!("import {module}")])
+            .status()
+            .is_ok_and(|s| s.success());
+        if !ok {
+            missing(&format!("the Python module {module} ({python})"), install);
+        }
+    }
+
+    /// The Python interpreter (`$PYTHON`, else `python3`) once it imports
+    /// `module`; a loud failure naming `install` when it does not.
+    pub fn python_with(module: &str, install: &str) -> String {
+        let python = std::env::var("PYTHON").unwrap_or_else(|_| "python3".to_owned());
+        require_python_module(&python, module, install);
+        python
+    }
+
+    /// The path of a file under `tests/peers/`.
+    pub fn script(name: &str) -> PathBuf {
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("peers")
+            .join(name)
+    }
+}
+
 /// In-process Zenoh for end-to-end tests: loopback only, no multicast
 /// scouting, peers connected explicitly.
 pub mod net {
@@ -450,33 +501,5 @@ pub mod daemon {
             v.push(s);
         }
         v
-    }
-}
-
-/// Peers from package registries that tests check the twin against.
-pub mod peers {
-    use std::process::Command;
-
-    /// The Python interpreter (`$PYTHON`, else `python3`) once it imports
-    /// `module`; panics with `install` (the command that installs it) when
-    /// it does not: a test whose peer is missing fails, never passes.
-    pub fn python_with(module: &str, install: &str) -> String {
-        let python = std::env::var("PYTHON").unwrap_or_else(|_| "python3".to_owned());
-        let ok = Command::new(&python)
-            .args(["-c", &format!("import {module}")])
-            .status()
-            .is_ok_and(|s| s.success());
-        assert!(
-            ok,
-            "the Python module {module} is missing ({python}): run `{install}`"
-        );
-        python
-    }
-
-    /// The path of a file under `tests/peers/`.
-    pub fn script(name: &str) -> std::path::PathBuf {
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("peers")
-            .join(name)
     }
 }

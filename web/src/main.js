@@ -27,7 +27,7 @@ const perf = {
 };
 window.__twin = { store, perf };
 
-const map = new MapView($('map'), store);
+const map = new MapView($('map'), store, $('map-tiles'), $('map-attribution'));
 const gauges = new Gauges($('gauges'), store);
 const chart = new FaultChart($('fault-chart'), store);
 const alarms = new Alarms($('alarms'), store);

@@ -1,11 +1,13 @@
 // The map: a plain 2D plot in the followed vessel's local frame (north up,
-// metres; no tiles). Draws the estimated track with its current 2-sigma
+// metres), over Web Mercator tiles when twind's settings name a tile server
+// (tiles.js; none by default). Draws the estimated track with its current 2-sigma
 // ellipse, the measured fixes, the forecast with its band, and every other
 // vessel as a marker with a short trail (placed by latitude/longitude in the
 // followed vessel's frame).
 
 import { el, set, text } from './svg.js';
 import { toLocal, epochS } from './geo.js';
+import { TileLayers } from './tiles.js';
 
 /** Half-width of the forecast band, in position sigmas. */
 export const BAND_K = 2;
@@ -15,9 +17,12 @@ export const NEAR_S = 20;
 const BOAT = 'M 0 -1.6 L 0.9 1.1 L 0 0.6 L -0.9 1.1 Z';
 
 export class MapView {
-  constructor(svg, store) {
+  /** `tileBox`, `credit`: the elements for the background tiles and their
+   *  attribution. */
+  constructor(svg, store, tileBox, credit) {
     this.svg = svg;
     this.store = store;
+    this.tiles = new TileLayers(tileBox, credit);
     this.view = null; // {cx, cy, span} in metres: centre east, centre north, width
     this.auto = 'follow'; // 'follow' | 'fleet' | null (the user moved it)
     el('defs', {}, svg);
@@ -129,10 +134,14 @@ export class MapView {
     } else if (this.auto === 'fleet' || !this.view) {
       this.fit(all.map(({ p }) => [p.e, p.n]));
     }
-    if (!this.view) return;
+    if (!this.view) {
+      this.tiles.render(store.info?.tiles, null, null, 0, 0);
+      return;
+    }
     const w = this.svg.clientWidth || 1;
     const h = this.svg.clientHeight || 1;
     const s = w / this.view.span; // px per metre
+    this.tiles.render(store.info?.tiles, frame, this.view, w, h);
     // World (east, north) -> screen: x = (e - cx) s + w/2, y = -(n - cy) s + h/2.
     set(this.world, 'transform', `translate(${(w / 2 - this.view.cx * s).toFixed(2)} ${(h / 2 + this.view.cy * s).toFixed(2)}) scale(${s.toFixed(5)} ${(-s).toFixed(5)})`);
     this.drawGrid(w, h, s);

@@ -1,6 +1,8 @@
 // Browser end-to-end test (a): `twind --demo` serves the page; following
 // otter-sim, the port gauge comes to the injected loss (0.25) within 0.03,
-// and the forecast is drawn with its uncertainty band.
+// and the forecast is drawn with its uncertainty band. Without a tile URL in
+// twind's settings (the default) the chart has no tiles and the page asks
+// nothing of any server but twind.
 // Screenshot: $WEB_ARTIFACTS/demo.png (default target/web-artifacts/).
 
 import { test } from 'node:test';
@@ -19,6 +21,8 @@ test('demo: follow otter-sim, the port gauge shows the injected loss, the foreca
     const page = await browser.newPage({ viewport: { width: 1600, height: 1000 } });
     const errors = [];
     page.on('pageerror', (e) => errors.push(e.message));
+    const requests = [];
+    page.on('request', (r) => requests.push(r.url()));
     await page.goto(twind.url);
     await waitFor(async () => (await page.getAttribute('[data-testid=connection]', 'data-state')) === 'live', { what: 'the event stream' });
 
@@ -90,6 +94,16 @@ test('demo: follow otter-sim, the port gauge shows the injected loss, the foreca
       await page.screenshot({ path: process.env.WEB_DOCS_SCREENSHOT });
     }
     assert.deepEqual(errors, [], 'no script errors on the page');
+
+    // No tiles configured: none drawn, no attribution, and every request the
+    // page made went to twind (data: URLs aside).
+    assert.equal(await page.locator('[data-testid=map-tile]').count(), 0);
+    assert.equal(await page.locator('[data-testid=map-tiles]').isVisible(), false);
+    assert.equal(await page.locator('[data-testid=map-attribution]').isVisible(), false);
+    const origin = new URL(twind.url).origin;
+    const elsewhere = requests.filter((u) => !u.startsWith('data:') && new URL(u).origin !== origin);
+    assert.deepEqual(elsewhere, [], 'requests beyond twind');
+    assert.ok(requests.filter((u) => u.startsWith(origin)).length >= 4, requests.join(' '));
   } finally {
     await browser.close();
     await twind.stop();

@@ -16,8 +16,14 @@
 //!   (`cargo xtask diagnose-real`).
 //! - [`generated`]: every generated block of the docs, the command that
 //!   makes it, and its regeneration (`cargo xtask docs`).
+//! - [`SCHEMA_DIR`]: where `cargo xtask schemas` writes the payloads' JSON
+//!   Schemas (`twin_wire::schema`); `twin-wire`'s `tests/schemas.rs` fails
+//!   when a committed file differs from the generated one.
 
 pub mod diagnose_real;
 pub mod generated;
 pub mod real_logs;
 pub mod trials;
+
+/// The payloads' JSON Schemas, relative to the repository root.
+pub const SCHEMA_DIR: &str = "docs/schemas";

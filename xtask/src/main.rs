@@ -53,6 +53,9 @@ enum Task {
         #[arg(long)]
         list: bool,
     },
+    /// Writes the JSON Schema of every payload to docs/schemas/ (from the
+    /// payload types, `twin_wire::schema`).
+    Schemas,
 }
 
 /// The repository root: where `cargo xtask` was run from, or above it.
@@ -92,6 +95,29 @@ fn docs(names: Vec<String>, list: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Writes every payload's schema to `docs/schemas/`, removing schema
+/// files no payload has any more.
+fn schemas() -> anyhow::Result<()> {
+    let dir = root().join(xtask::SCHEMA_DIR);
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let schemas = twin_wire::schema::all();
+    for entry in std::fs::read_dir(&dir)? {
+        let path = entry?.path();
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        if name.ends_with(".schema.json") && !schemas.iter().any(|s| s.file_name() == name) {
+            std::fs::remove_file(&path)?;
+            eprintln!("xtask schemas: removed {}", path.display());
+        }
+    }
+    for s in &schemas {
+        let path = dir.join(s.file_name());
+        std::fs::write(&path, s.file_text())
+            .with_context(|| format!("writing {}", path.display()))?;
+        eprintln!("xtask schemas: {}", path.display());
+    }
+    Ok(())
+}
+
 fn main() -> anyhow::Result<()> {
     match Cli::parse().command {
         Task::Trials { seeds } => print!("{}", xtask::trials::matrix_markdown(seeds)),
@@ -109,6 +135,7 @@ fn main() -> anyhow::Result<()> {
             print!("{}", xtask::diagnose_real::markdown(&logs));
         }
         Task::Docs { names, list } => docs(names, list)?,
+        Task::Schemas => schemas()?,
     }
     Ok(())
 }

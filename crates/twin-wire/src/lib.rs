@@ -11,6 +11,7 @@
 //!   parameters from them.
 //! - [`outputs`]: the twin's output payloads (state, fault, prediction,
 //!   alarm, stats).
+//! - [`schema`]: the JSON Schemas of every payload, from the types.
 //! - [`measurement`]: [`Record`], the typed, time-stamped SI measurement
 //!   every log reader emits.
 //! - [`read`]: streaming readers of NMEA 0183, canboat NMEA 2000 text and
@@ -36,6 +37,7 @@ pub mod outputs;
 pub mod profile;
 pub mod read;
 pub mod ros2;
+pub mod schema;
 pub mod time;
 pub mod write;
 

@@ -32,6 +32,9 @@
 //! Payloads larger than the limit (default [`DEFAULT_MAX_PAYLOAD_BYTES`]) are
 //! refused before any parsing.
 
+use schemars::JsonSchema;
+use std::f64::consts::TAU;
+
 use serde::{Deserialize, Serialize};
 use twin_core::geodesy::{LatLon, wrap_two_pi};
 use twin_core::sample::{GnssFix, PropellerSpeeds, RADPS_PER_RPM};
@@ -59,7 +62,7 @@ pub fn plausible_radians(angle_rad: f64) -> bool {
 }
 
 /// Whose clock a payload's `time` is (see the module doc).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "lowercase")]
 pub enum TimeSource {
     /// The source's own time stamp (a GNSS time, a logger's time stamp).
@@ -85,27 +88,34 @@ impl TimeSource {
 }
 
 /// The GNSS fix payload, as on the wire.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct GnssMessage {
     /// RFC 3339 UTC time of the fix.
     pub time: String,
     /// Latitude, degrees.
+    #[schemars(range(min = -90.0, max = 90.0))]
     pub lat_deg: f64,
     /// Longitude, degrees.
+    #[schemars(range(min = -180.0, max = 180.0))]
     pub lon_deg: f64,
     /// Speed over ground, m/s.
+    #[schemars(range(min = 0.0, max = MAX_SPEED_MPS))]
     pub sog_mps: f64,
     /// Course over ground, rad clockwise from true north.
+    #[schemars(range(min = -TAU, max = 2.0 * TAU))]
     pub cog_rad: f64,
     /// True heading, rad clockwise from true north.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = -TAU, max = 2.0 * TAU))]
     pub heading_rad: Option<f64>,
     /// Yaw rate from a rate gyro or rate-of-turn sensor, rad/s, positive
     /// turning to starboard.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = -MAX_ABS_YAW_RATE_RADPS, max = MAX_ABS_YAW_RATE_RADPS))]
     pub yaw_rate_radps: Option<f64>,
-    /// Horizontal dilution of precision.
+    /// Horizontal dilution of precision, above 0.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("exclusiveMinimum" = 0))]
     pub hdop: Option<f64>,
     /// True when the fix is replayed from a log rather than live.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
@@ -116,7 +126,7 @@ pub struct GnssMessage {
 }
 
 /// A port/starboard pair of numbers, as on the wire.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct PortStarboard {
     /// Port propeller.
     pub port: f64,
@@ -125,7 +135,8 @@ pub struct PortStarboard {
 }
 
 /// The actuators payload, as on the wire.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[schemars(extend("oneOf" = [{"required": ["rpm"]}, {"required": ["thrust_n"]}]))]
 pub struct ActuatorsMessage {
     /// RFC 3339 UTC time of the command.
     pub time: String,

@@ -7,6 +7,7 @@
 
 use std::collections::BTreeMap;
 
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use twin_core::decision::{StatusChange, ThrusterStatus};
 use twin_core::twin::{FaultReport, FaultSource, ForecastPoint, StateReport, ThrusterEstimate};
@@ -27,7 +28,7 @@ fn finite(v: f64) -> Option<f64> {
 }
 
 /// Which estimator produced an output.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ModelName {
     /// The extended twin (propeller speeds, kinetic model).
@@ -46,7 +47,7 @@ impl From<FaultSource> for ModelName {
 }
 
 /// Standard deviations of the state estimate.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct StateSigma {
     /// North, m.
     pub north_m: f64,
@@ -59,7 +60,7 @@ pub struct StateSigma {
 }
 
 /// A water current estimate.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct CurrentMessage {
     /// North component, m/s.
     pub north_mps: f64,
@@ -72,7 +73,7 @@ pub struct CurrentMessage {
 }
 
 /// `twin/state`: the state estimate.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct StateMessage {
     /// Vessel id.
     pub vessel: String,
@@ -144,7 +145,7 @@ impl StateMessage {
 }
 
 /// One thruster in `twin/fault`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ThrusterMessage {
     /// Estimated loss of effectiveness, clamped to [0, 1] (null when unknown).
     pub loss: Option<f64>,
@@ -161,7 +162,7 @@ pub struct ThrusterMessage {
 }
 
 /// A thruster status as written in payloads.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ThrusterStatusName {
     /// The data have not yet been able to tell.
@@ -186,7 +187,7 @@ impl From<ThrusterStatus> for ThrusterStatusName {
 }
 
 /// Both thrusters.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct Thrusters {
     /// The port thruster.
     pub port: ThrusterMessage,
@@ -195,7 +196,7 @@ pub struct Thrusters {
 }
 
 /// A value with its standard deviation.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ValueSigma {
     /// The value.
     pub value: f64,
@@ -204,7 +205,7 @@ pub struct ValueSigma {
 }
 
 /// `twin/fault`: the fault picture.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct FaultMessage {
     /// Vessel id.
     pub vessel: String,
@@ -273,7 +274,7 @@ impl FaultMessage {
 }
 
 /// One point of `twin/prediction`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct PredictionPoint {
     /// Time, RFC 3339.
     pub time: String,
@@ -298,7 +299,7 @@ pub struct PredictionPoint {
 }
 
 /// `twin/prediction`: the forecast.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct PredictionMessage {
     /// Vessel id.
     pub vessel: String,
@@ -357,7 +358,7 @@ impl PredictionMessage {
 }
 
 /// `twin/alarm`: a change of a thruster's status, published on change only.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct AlarmMessage {
     /// Vessel id.
     pub vessel: String,
@@ -413,7 +414,7 @@ impl AlarmMessage {
 /// its sentences gave a record; one with none is rejected with the first
 /// sentence's reason (`empty_nmea` when it holds no sentence at all). What
 /// the sentences of accepted NMEA payloads then gave is in [`NmeaStats`].
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 pub struct StatsMessage {
     /// Vessel id.
     pub vessel: String,
@@ -436,7 +437,7 @@ pub struct StatsMessage {
 /// The sentences of a vessel's accepted NMEA payloads: how many were
 /// refused (a payload can hold good and bad ones), and the fixes and shaft
 /// speeds assembled from the rest, with the twin's refusals of those fixes.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 pub struct NmeaStats {
     /// Sentences refused inside accepted payloads, per reason.
     #[serde(default)]
@@ -484,7 +485,7 @@ impl StatsMessage {
 /// vessel not admitted, too many vessels), published every
 /// `stats_interval_s` of wall clock. `received = routed + refused` (summed
 /// over reasons).
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 pub struct DaemonStatsMessage {
     /// The daemon's id (`[daemon] id`, else its Zenoh session id).
     pub daemon: String,
@@ -509,7 +510,7 @@ pub struct DaemonStatsMessage {
 }
 
 /// A vessel id (or, when no id could be read, the key) the daemon refused.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct RefusedSender {
     /// The vessel id, or the key (at most 128 bytes) when it names none.
     pub sender: String,
@@ -523,7 +524,7 @@ pub struct RefusedSender {
 
 /// One finding of a diagnosis, as published on `twin/finding` and printed by
 /// `twin diagnose --json`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct FindingJson {
     /// The cause: `current`, `thruster_loss`, `heading_offset`, `sog_scale`,
     /// `gnss_latency`, `lever_arm`, `stw_scale`, `sideslip`.
@@ -539,7 +540,7 @@ pub struct FindingJson {
 }
 
 /// A finding's gain on held-out data.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct GainJson {
     /// Held-out log-likelihood gain.
     pub heldout_nll_gain: f64,
@@ -552,7 +553,7 @@ pub struct GainJson {
 }
 
 /// Two numbers, without and with a finding.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct BeforeAfter {
     /// Without the finding.
     pub before: f64,
@@ -561,7 +562,7 @@ pub struct BeforeAfter {
 }
 
 /// Prediction RMSE at one horizon, without and with a finding.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct HorizonRmse {
     /// Horizon, s.
     pub horizon_s: f64,
@@ -615,7 +616,7 @@ impl From<&twin_core::diagnose::Finding> for FindingJson {
 /// `twin/finding`: what the daemon's residual monitor concluded about a
 /// vessel's recent data, published when it changes (an empty list when the
 /// nominal model explains the data again).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct FindingsMessage {
     /// Vessel id.
     pub vessel: String,

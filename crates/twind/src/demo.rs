@@ -71,6 +71,7 @@ pub async fn run(
     options: DemoOptions,
     tap: OutputTap,
     latest: LatestStates,
+    metrics: crate::metrics::Metrics,
     shutdown: CancellationToken,
 ) -> anyhow::Result<HashMap<String, FaultMessage>> {
     let stop_daemon = CancellationToken::new();
@@ -78,6 +79,7 @@ pub async fn run(
     let daemon = tokio::spawn(crate::run(crate::RunConfig {
         tap,
         latest,
+        metrics,
         ..crate::RunConfig::new(settings, session.clone(), stop_daemon.clone())
     }));
 

@@ -521,6 +521,23 @@ impl Dispatcher {
         std::mem::take(&mut router.summary)
     }
 
+    /// The events waiting in the vessels' queues (for the metrics).
+    pub fn queues(&self) -> crate::metrics::Queues {
+        let Ok(router) = self.0.lock() else {
+            return crate::metrics::Queues::default();
+        };
+        let mut q = crate::metrics::Queues {
+            capacity: router.settings.vessels.queue_depth as u64,
+            ..Default::default()
+        };
+        for route in router.vessels.values().filter(|r| !r.tx.is_closed()) {
+            let waiting = (route.tx.max_capacity() - route.tx.capacity()) as u64;
+            q.queued += waiting;
+            q.deepest = q.deepest.max(waiting);
+        }
+        q
+    }
+
     /// The daemon's own statistics so far, for `{prefix}/@twind/{id}/stats`.
     pub fn daemon_stats(&self, daemon: &str, save_failures: u64) -> DaemonStatsMessage {
         let Ok(router) = self.0.lock() else {
@@ -623,6 +640,7 @@ mod tests {
                         load: load.clone(),
                         save_failures: crate::SaveFailures::default(),
                         ros2: None,
+                        metrics: crate::metrics::Metrics::default(),
                     },
                     done_tx,
                 },

@@ -10,6 +10,8 @@
 //! - [`persist`]: calibration files saved and restored per vessel.
 //! - [`ros2`]: with `[ros2] enabled`, the outputs as ROS 2 messages and
 //!   GNSS input from ROS 2, over rmw_zenoh on the same session.
+//! - [`metrics`]: the Prometheus metrics (`GET /metrics`).
+//! - [`notify`]: systemd's notifications (ready, watchdog, stopping).
 //! - [`stats`]: counting and rate-limited logging of rejections.
 //! - [`web`]: the operator's page (HTTP and server-sent events), served
 //!   from the outputs the daemon publishes.
@@ -39,6 +41,8 @@
 pub mod demo;
 mod dispatch;
 pub mod forecast;
+pub mod metrics;
+pub mod notify;
 pub mod persist;
 pub mod ros2;
 pub mod settings;
@@ -318,6 +322,11 @@ pub struct RunConfig {
     /// Whether the fault path keeps up; the forecast threads yield to it and
     /// the caller can read it.
     pub load: crate::forecast::FaultPathLoad,
+    /// The daemon's metrics, filled by the run (the caller serves them).
+    pub metrics: crate::metrics::Metrics,
+    /// Tells systemd when the daemon serves, that it lives, and when it
+    /// stops (disabled unless the caller enables it).
+    pub notify: crate::notify::Notifier,
 }
 
 impl RunConfig {
@@ -330,6 +339,8 @@ impl RunConfig {
             tap: None,
             latest: LatestStates::default(),
             load: crate::forecast::FaultPathLoad::new(),
+            metrics: crate::metrics::Metrics::default(),
+            notify: crate::notify::Notifier::disabled(),
         }
     }
 }
@@ -344,6 +355,8 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         tap,
         latest,
         load,
+        metrics,
+        notify,
     } = config;
     let settings = Arc::new(settings);
     let daemon_id = match &settings.daemon.id {
@@ -398,12 +411,19 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
                 tap,
                 diagnose_slots,
                 forecaster,
-                load,
+                load: load.clone(),
                 save_failures: save_failures.clone(),
                 ros2,
+                metrics: metrics.clone(),
             },
             done_tx,
         },
+    );
+    metrics.attach(
+        daemon_id.clone(),
+        dispatcher.clone(),
+        save_failures.clone(),
+        load,
     );
     let subscriber = {
         let dispatcher = dispatcher.clone();
@@ -457,9 +477,21 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         settings.publish.stats_interval_s,
     ));
     stats_tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut watchdog_tick = notify.watchdog_interval().map(|every| {
+        let mut tick = tokio::time::interval(every);
+        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        tick
+    });
+    notify.ready();
     loop {
         tokio::select! {
             _ = shutdown.cancelled() => break,
+            () = watchdog_due(&mut watchdog_tick) => {
+                // Alive: this loop runs and the dispatcher's lock is free
+                // (the subscriber's callback is not stuck holding it).
+                let _ = dispatcher.queues();
+                notify.watchdog();
+            }
             Some(done) = done_rx.recv() => {
                 let mut ended = vec![done];
                 while let Ok(done) = done_rx.try_recv() {
@@ -471,6 +503,7 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         }
     }
 
+    notify.stopping();
     // Stop reading first (every sample Zenoh delivered has been routed by
     // the callback), then close the vessels' queues and let every vessel
     // finish.
@@ -497,6 +530,16 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         "twind stopped"
     );
     Ok(summary)
+}
+
+/// The next watchdog tick, or never when systemd does not watch.
+async fn watchdog_due(tick: &mut Option<tokio::time::Interval>) {
+    match tick {
+        Some(t) => {
+            t.tick().await;
+        }
+        None => std::future::pending().await,
+    }
 }
 
 /// Answers queries on the latest outputs' queryable from the shared maps,

@@ -1,7 +1,9 @@
 //! `twind`: parses the command line, starts tracing, loads the settings and
 //! Zenoh's configuration, opens the session, starts the web page when asked
 //! (`--web`, `--web-listen`, `[web]` in the settings; on by default in
-//! `--demo` unless `--no-web`), and runs the daemon (or the demo) until
+//! `--demo` unless `--no-web`) and the metrics' own port when asked
+//! (`--metrics-listen`, `[metrics] listen`), and runs the daemon (or the
+//! demo, which tells systemd nothing) until
 //! SIGINT or SIGTERM (a demo at a terminal keeps its page up after the
 //! trials, until Ctrl-C); the web page stops with the daemon, and the Zenoh
 //! session is closed last.
@@ -55,6 +57,10 @@ struct Cli {
     /// No web page, not even in --demo or with `web.enabled` in the settings.
     #[arg(long, conflicts_with_all = ["web", "web_listen"])]
     no_web: bool,
+    /// Serve the Prometheus metrics (`/metrics`) alone on this address
+    /// (overrides `[metrics] listen`); they are also on the web page's port.
+    #[arg(long, value_name = "ADDR")]
+    metrics_listen: Option<SocketAddr>,
     #[command(flatten)]
     zenoh: ZenohArgs,
 }
@@ -90,6 +96,9 @@ fn settings(cli: &Cli) -> anyhow::Result<Settings> {
     };
     if let Some(dir) = &cli.state_dir {
         s.persistence.dir = Some(dir.clone());
+    }
+    if let Some(listen) = cli.metrics_listen {
+        s.metrics.listen = Some(listen);
     }
     if let Some(id) = &cli.id {
         twin_wire::keys::validate_vessel_id(id).with_context(|| format!("--id {id:?}"))?;
@@ -139,6 +148,51 @@ async fn shutdown_signal(token: CancellationToken) {
     token.cancel();
 }
 
+/// The web page, when asked for: the output tap the daemon copies into and
+/// the running server.
+async fn start_page(
+    cli: &Cli,
+    settings: &Settings,
+    session: &zenoh::Session,
+    latest: &twind::LatestStates,
+    metrics: &twind::metrics::Metrics,
+    token: &CancellationToken,
+) -> anyhow::Result<(twind::OutputTap, Option<web::WebServer>)> {
+    Ok(match web_listen(cli, settings)? {
+        Some(listen) => {
+            let (tx, _) = tokio::sync::broadcast::channel(WEB_TAP_CAPACITY);
+            let sources = web::Sources {
+                tap: tx.clone(),
+                latest: latest.clone(),
+                inputs: Some(web::InputFeed {
+                    session: session.clone(),
+                    keys: settings.keys.clone(),
+                    own: settings.vessels.own.clone(),
+                    max_payload_bytes: settings.max_payload_bytes,
+                }),
+                info: web::WebInfo::new(settings),
+                metrics: metrics.clone(),
+            };
+            match web::start(listen, sources, token.clone()).await {
+                Ok(page) => {
+                    println!("twind web page: {}", page.url());
+                    (Some(tx), Some(page))
+                }
+                // The demo's page is a default, not a request: without it
+                // the demo still runs.
+                Err(e) if cli.demo && cli.web_listen.is_none() && !cli.web => {
+                    tracing::warn!(
+                        "{e:#}; the demo runs without its page (--web-listen ADDR picks another address)"
+                    );
+                    (None, None)
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        None => (None, None),
+    })
+}
+
 #[tokio::main]
 async fn main() -> anyhow::Result<()> {
     tracing_subscriber::fmt()
@@ -160,38 +214,17 @@ async fn main() -> anyhow::Result<()> {
     let token = CancellationToken::new();
     tokio::spawn(shutdown_signal(token.clone()));
     let latest = twind::LatestStates::default();
-    let (tap, page) = match web_listen(&cli, &settings)? {
+    let metrics = twind::metrics::Metrics::default();
+    let metrics_server = match settings.metrics.listen {
         Some(listen) => {
-            let (tx, _) = tokio::sync::broadcast::channel(WEB_TAP_CAPACITY);
-            let sources = web::Sources {
-                tap: tx.clone(),
-                latest: latest.clone(),
-                inputs: Some(web::InputFeed {
-                    session: session.clone(),
-                    keys: settings.keys.clone(),
-                    own: settings.vessels.own.clone(),
-                    max_payload_bytes: settings.max_payload_bytes,
-                }),
-                info: web::WebInfo::new(&settings),
-            };
-            match web::start(listen, sources, token.clone()).await {
-                Ok(page) => {
-                    println!("twind web page: {}", page.url());
-                    (Some(tx), Some(page))
-                }
-                // The demo's page is a default, not a request: without it
-                // the demo still runs.
-                Err(e) if cli.demo && cli.web_listen.is_none() && !cli.web => {
-                    tracing::warn!(
-                        "{e:#}; the demo runs without its page (--web-listen ADDR picks another address)"
-                    );
-                    (None, None)
-                }
-                Err(e) => return Err(e),
-            }
+            let (local, task) =
+                twind::metrics::serve(listen, metrics.clone(), token.clone()).await?;
+            println!("twind metrics: http://{local}/metrics");
+            Some(task)
         }
-        None => (None, None),
+        None => None,
     };
+    let (tap, page) = start_page(&cli, &settings, &session, &latest, &metrics, &token).await?;
     let result = if cli.demo {
         let options = twind::demo::DemoOptions {
             rate: cli.demo_rate,
@@ -203,6 +236,7 @@ async fn main() -> anyhow::Result<()> {
             options,
             tap,
             latest,
+            metrics,
             token.clone(),
         )
         .await
@@ -224,6 +258,8 @@ async fn main() -> anyhow::Result<()> {
         twind::run(twind::RunConfig {
             tap,
             latest,
+            metrics,
+            notify: twind::notify::Notifier::from_env(),
             ..twind::RunConfig::new(settings, session.clone(), token.clone())
         })
         .await
@@ -237,6 +273,9 @@ async fn main() -> anyhow::Result<()> {
             );
         }
         page.stopped(Duration::from_secs(2)).await;
+    }
+    if let Some(task) = metrics_server {
+        let _ = tokio::time::timeout(Duration::from_secs(2), task).await;
     }
     // The session closes last, after every vessel has said its last words.
     if let Err(e) = session.close().await {

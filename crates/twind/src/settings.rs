@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use twin_core::diagnose::MonitorConfig;
 use twin_core::twin::TwinConfig;
 use twin_wire::KeySpace;
@@ -58,6 +58,8 @@ struct RawSettings {
     persistence: RawPersistence,
     #[serde(default)]
     web: RawWeb,
+    #[serde(default)]
+    metrics: RawMetrics,
     #[serde(default)]
     twin: RawTwin,
     #[serde(default)]
@@ -154,6 +156,16 @@ struct RawPersistence {
 #[serde(deny_unknown_fields)]
 struct RawWeb {
     enabled: Option<bool>,
+    listen: Option<String>,
+    tile_url: Option<String>,
+    tile_overlay_url: Option<String>,
+    tile_attribution: Option<String>,
+    tile_max_zoom: Option<u8>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMetrics {
     listen: Option<String>,
 }
 
@@ -260,6 +272,39 @@ pub struct WebSettings {
     pub enabled: bool,
     /// Address to serve it on.
     pub listen: String,
+    /// The chart's background tiles; `None` keeps the page tile-less (it then
+    /// makes no request beyond the daemon).
+    pub tiles: Option<TileSettings>,
+}
+
+/// Web Mercator tiles drawn under the page's track (`[web] tile_url`...);
+/// the page reads them as they serialize, in `GET /api/info`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TileSettings {
+    /// The base map's URL template (`{z}`, `{x}`, `{y}`), if any.
+    pub url: Option<String>,
+    /// A transparent layer drawn over the base map (e.g. OpenSeaMap's
+    /// seamarks), if any.
+    pub overlay_url: Option<String>,
+    /// Shown on the chart, as the tile servers' terms ask.
+    pub attribution: String,
+    /// The most detailed zoom level requested (closer views enlarge it).
+    pub max_zoom: u8,
+}
+
+/// Most detailed zoom level a tile server is asked for unless told.
+pub const DEFAULT_TILE_MAX_ZOOM: u8 = 19;
+/// Longest tile URL template accepted, bytes.
+const MAX_TILE_URL_BYTES: usize = 2048;
+/// Longest attribution accepted, characters.
+const MAX_TILE_ATTRIBUTION_CHARS: usize = 300;
+
+/// The Prometheus metrics' own listener (they are also on the web page's
+/// port when the page is served).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct MetricsSettings {
+    /// Serve `/metrics` alone on this address.
+    pub listen: Option<std::net::SocketAddr>,
 }
 
 /// The live residual monitor (`twin diagnose` on each vessel's recent past).
@@ -293,6 +338,8 @@ pub struct Settings {
     pub persistence: PersistenceSettings,
     /// Web page.
     pub web: WebSettings,
+    /// The metrics' own listener.
+    pub metrics: MetricsSettings,
     /// The twin each vessel runs.
     pub twin: TwinConfig,
     /// The live residual monitor.
@@ -502,19 +549,16 @@ impl Settings {
                 raw.persistence.save_interval_s.unwrap_or(30.0),
             )?,
         };
-        let web = WebSettings {
-            enabled: raw.web.enabled.unwrap_or(false),
-            listen: raw
-                .web
-                .listen
-                .unwrap_or_else(|| "127.0.0.1:8080".to_string()),
+        let web = web_settings(raw.web)?;
+        let metrics = MetricsSettings {
+            listen: match raw.metrics.listen {
+                Some(a) => Some(a.parse().map_err(|_| SettingsError::Invalid {
+                    key: "metrics.listen",
+                    reason: format!("{a:?} is not an address such as 127.0.0.1:9464"),
+                })?),
+                None => None,
+            },
         };
-        if web.listen.parse::<std::net::SocketAddr>().is_err() {
-            return Err(SettingsError::Invalid {
-                key: "web.listen",
-                reason: format!("{:?} is not an address such as 127.0.0.1:8080", web.listen),
-            });
-        }
         let twin = twin_config(&raw.twin)?;
         let diagnose = diagnose_settings(&raw.diagnose)?;
         let profiles = profile_settings(raw.profiles)?;
@@ -527,6 +571,7 @@ impl Settings {
             daemon,
             persistence,
             web,
+            metrics,
             twin,
             diagnose,
             profiles,
@@ -590,6 +635,113 @@ fn profile_settings(raw: RawProfiles) -> Result<ProfileSettings, SettingsError> 
         rules,
         default,
     })
+}
+
+/// `[web]`, validated.
+fn web_settings(raw: RawWeb) -> Result<WebSettings, SettingsError> {
+    let listen = raw.listen.unwrap_or_else(|| "127.0.0.1:8080".to_string());
+    if listen.parse::<std::net::SocketAddr>().is_err() {
+        return Err(SettingsError::Invalid {
+            key: "web.listen",
+            reason: format!("{listen:?} is not an address such as 127.0.0.1:8080"),
+        });
+    }
+    let url = raw
+        .tile_url
+        .map(|u| tile_url_template("web.tile_url", u))
+        .transpose()?;
+    let overlay_url = raw
+        .tile_overlay_url
+        .map(|u| tile_url_template("web.tile_overlay_url", u))
+        .transpose()?;
+    let max_zoom = raw.tile_max_zoom.unwrap_or(DEFAULT_TILE_MAX_ZOOM);
+    if max_zoom > 24 {
+        return Err(SettingsError::Invalid {
+            key: "web.tile_max_zoom",
+            reason: format!("must be between 0 and 24, got {max_zoom}"),
+        });
+    }
+    let tiles = if url.is_none() && overlay_url.is_none() {
+        if raw.tile_attribution.is_some() {
+            return Err(SettingsError::Invalid {
+                key: "web.tile_attribution",
+                reason: "there are no tiles to attribute: set web.tile_url or web.tile_overlay_url"
+                    .into(),
+            });
+        }
+        None
+    } else {
+        let attribution = raw.tile_attribution.unwrap_or_default();
+        let attribution = attribution.trim();
+        if attribution.is_empty() || attribution.chars().count() > MAX_TILE_ATTRIBUTION_CHARS {
+            return Err(SettingsError::Invalid {
+                key: "web.tile_attribution",
+                reason: format!(
+                    "required with tile URLs, at most {MAX_TILE_ATTRIBUTION_CHARS} characters \
+                     (the tile servers' terms ask for it, e.g. \"© OpenStreetMap contributors\")"
+                ),
+            });
+        }
+        Some(TileSettings {
+            url,
+            overlay_url,
+            attribution: attribution.to_string(),
+            max_zoom,
+        })
+    };
+    Ok(WebSettings {
+        enabled: raw.enabled.unwrap_or(false),
+        listen,
+        tiles,
+    })
+}
+
+/// A tile URL template, checked: `http://` or `https://`, a fixed host (it
+/// goes into the page's content security policy), `{z}`, `{x}` and `{y}` in
+/// the path and no other placeholder, printable ASCII without quotes,
+/// spaces, `;` or `,`.
+fn tile_url_template(key: &'static str, url: String) -> Result<String, SettingsError> {
+    let invalid = |reason: String| SettingsError::Invalid { key, reason };
+    if url.len() > MAX_TILE_URL_BYTES {
+        return Err(invalid(format!("longer than {MAX_TILE_URL_BYTES} bytes")));
+    }
+    let Some(rest) = url
+        .strip_prefix("https://")
+        .or_else(|| url.strip_prefix("http://"))
+    else {
+        return Err(invalid(format!(
+            "{url:?} must start with http:// or https://"
+        )));
+    };
+    if let Some(c) = url.chars().find(|c| {
+        !c.is_ascii_graphic() || matches!(c, '\'' | '"' | ';' | ',' | '<' | '>' | '\\' | '`')
+    }) {
+        return Err(invalid(format!(
+            "{url:?} has {c:?}: printable ASCII only, without quotes, spaces, `;` or `,` \
+             (percent-encode, and write international hosts in punycode)"
+        )));
+    }
+    let host = rest.split(['/', '?', '#']).next().unwrap_or_default();
+    if host.is_empty() || host.contains(['{', '}', '@']) {
+        return Err(invalid(format!(
+            "{url:?} must name a fixed host, without placeholders or user names"
+        )));
+    }
+    for placeholder in ["{z}", "{x}", "{y}"] {
+        if !url.contains(placeholder) {
+            return Err(invalid(format!(
+                "{url:?} has no {placeholder}: a tile URL template has {{z}}, {{x}} and {{y}}, \
+                 e.g. https://tile.openstreetmap.org/{{z}}/{{x}}/{{y}}.png"
+            )));
+        }
+    }
+    let bare = url.replace("{z}", "").replace("{x}", "").replace("{y}", "");
+    if bare.contains(['{', '}']) {
+        return Err(invalid(format!(
+            "{url:?}: only {{z}}, {{x}} and {{y}} are filled in (no {{s}} subdomains)"
+        )));
+    }
+    Ok(url)
 }
 
 /// `[vessels]`, validated.
@@ -823,6 +975,76 @@ mod tests {
     }
 
     #[test]
+    fn tile_urls_are_templates_with_a_fixed_host() {
+        let s = Settings::default();
+        assert_eq!(s.web.tiles, None, "no tiles unless asked");
+        let ok = Settings::from_toml(
+            "[web]\ntile_url = \"https://tile.openstreetmap.org/{z}/{x}/{y}.png\"\n\
+             tile_overlay_url = \"https://tiles.openseamap.org/seamark/{z}/{x}/{y}.png\"\n\
+             tile_attribution = \"© OpenStreetMap contributors, OpenSeaMap\"\n",
+        )
+        .unwrap();
+        let tiles = ok.web.tiles.unwrap();
+        assert_eq!(
+            tiles.url.as_deref(),
+            Some("https://tile.openstreetmap.org/{z}/{x}/{y}.png")
+        );
+        assert_eq!(
+            tiles.overlay_url.as_deref(),
+            Some("https://tiles.openseamap.org/seamark/{z}/{x}/{y}.png")
+        );
+        assert_eq!(
+            tiles.attribution,
+            "© OpenStreetMap contributors, OpenSeaMap"
+        );
+        assert_eq!(tiles.max_zoom, DEFAULT_TILE_MAX_ZOOM);
+        let local = Settings::from_toml(
+            "[web]\ntile_url = \"http://127.0.0.1:8081/t/{z}/{y}/{x}?style=1\"\n\
+             tile_attribution = \"local\"\ntile_max_zoom = 12\n",
+        )
+        .unwrap();
+        assert_eq!(local.web.tiles.unwrap().max_zoom, 12);
+
+        let attribution = "tile_attribution = \"x\"\n";
+        let bad = [
+            ("ftp://h/{z}/{x}/{y}.png", "http:// or https://"),
+            (
+                "tile.openstreetmap.org/{z}/{x}/{y}.png",
+                "http:// or https://",
+            ),
+            ("https://h/{z}/{x}.png", "no {y}"),
+            ("https://h/{x}/{y}.png", "no {z}"),
+            ("https://h/{z}/{y}.png", "no {x}"),
+            ("https://{s}.tile.example/{z}/{x}/{y}.png", "fixed host"),
+            ("https://h/{s}/{z}/{x}/{y}.png", "no {s}"),
+            ("https://user@h/{z}/{x}/{y}.png", "fixed host"),
+            ("https://h/{z}/{x}/{y}.png; img-src *", "has ';'"),
+            ("https://h/{z} /{x}/{y}.png", "has ' '"),
+            ("https:///{z}/{x}/{y}.png", "fixed host"),
+        ];
+        for (key, extra) in [
+            ("web.tile_url", attribution),
+            ("web.tile_overlay_url", attribution),
+        ] {
+            let name = key.trim_start_matches("web.");
+            for (url, why) in bad {
+                let text = format!("[web]\n{name} = \"{url}\"\n{extra}");
+                let err = Settings::from_toml(&text).unwrap_err().to_string();
+                assert!(err.contains(key) && err.contains(why), "{text:?}: {err}");
+            }
+        }
+        // A tile URL needs its attribution; an attribution needs tiles.
+        for text in [
+            "[web]\ntile_url = \"https://h/{z}/{x}/{y}.png\"\n",
+            "[web]\ntile_overlay_url = \"https://h/{z}/{x}/{y}.png\"\ntile_attribution = \" \"\n",
+            "[web]\ntile_attribution = \"© OpenStreetMap contributors\"\n",
+        ] {
+            let err = Settings::from_toml(text).unwrap_err().to_string();
+            assert!(err.contains("web.tile_attribution"), "{text:?}: {err}");
+        }
+    }
+
+    #[test]
     fn errors_name_the_bad_key() {
         let cases = [
             (
@@ -836,6 +1058,7 @@ mod tests {
                 "input.max_payload_bytes",
             ),
             ("[web]\nlisten = \"nowhere\"\n", "web.listen"),
+            ("[metrics]\nlisten = \"nowhere\"\n", "metrics.listen"),
             (
                 "[twin]\nsuspect_loss = 0.5\nfault_loss = 0.2\n",
                 "twin.suspect_loss",
@@ -853,6 +1076,7 @@ mod tests {
             ("[vessels]\nadmit_burst = 0\n", "vessels.admit_burst"),
             ("[input]\nlive_max_ahead_s = -1\n", "input.live_max_ahead_s"),
             ("[daemon]\nid = \"a/b\"\n", "daemon.id"),
+            ("[web]\ntile_max_zoom = 30\n", "web.tile_max_zoom"),
         ];
         for (text, key) in cases {
             let err = Settings::from_toml(text).unwrap_err().to_string();

@@ -11,11 +11,13 @@
 //! log it, once).
 
 use std::collections::{BTreeMap, HashMap};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use twin_wire::Topic;
 use twin_wire::outputs::NmeaStats;
+
+use crate::metrics::FleetCounts;
 
 /// How often one reason may be logged for one counter.
 pub const LOG_EVERY: Duration = Duration::from_secs(60);
@@ -96,6 +98,8 @@ pub struct Counters {
     /// What the sentences of accepted NMEA payloads gave.
     pub nmea: NmeaStats,
     limits: HashMap<String, RateLimit>,
+    /// The fleet's counts (the daemon's metrics), counted too.
+    fleet: Option<Arc<FleetCounts>>,
 }
 
 /// Which count a refusal goes to.
@@ -121,10 +125,21 @@ fn names(counts: &[u64; INPUTS.len()]) -> BTreeMap<String, u64> {
 }
 
 impl Counters {
+    /// Counters of one vessel whose counts also go to the fleet's.
+    pub fn for_fleet(fleet: Arc<FleetCounts>) -> Self {
+        Self {
+            fleet: Some(fleet),
+            ..Self::default()
+        }
+    }
+
     /// Counts a message received on an input topic.
     pub fn receive(&mut self, topic: Topic) {
         if let Some(i) = input_index(topic) {
             self.received[i] += 1;
+        }
+        if let Some(f) = &self.fleet {
+            f.receive(topic);
         }
     }
 
@@ -132,6 +147,9 @@ impl Counters {
     pub fn accept(&mut self, topic: Topic) {
         if let Some(i) = input_index(topic) {
             self.accepted[i] += 1;
+        }
+        if let Some(f) = &self.fleet {
+            f.accept(topic);
         }
     }
 
@@ -158,6 +176,9 @@ impl Counters {
         reason: &str,
         detail: &dyn std::fmt::Display,
     ) {
+        if let (Refused::Message, Some(f)) = (what, &self.fleet) {
+            f.reject(reason);
+        }
         let map = match what {
             Refused::Message => &mut self.rejected,
             Refused::NmeaSentence => &mut self.nmea.sentences_rejected,

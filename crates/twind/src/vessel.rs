@@ -52,6 +52,7 @@ use zenoh::qos::CongestionControl;
 use zenoh::{Session, Wait};
 
 use crate::forecast::{FaultPathLoad, ForecastJob, Forecaster};
+use crate::metrics::{Metrics, Update};
 use crate::persist;
 use crate::ros2::{Ros2Node, VesselPublishers};
 use crate::settings::{LiveTimeSettings, Settings};
@@ -181,6 +182,7 @@ pub struct VesselTask {
     outputs_slot: OnceLock<OutputSlot>,
     tap: OutputTap,
     save_failures: SaveFailures,
+    metrics: Metrics,
     twin: VesselTwin,
     nmea: NmeaDecoder,
     assembler: FixAssembler,
@@ -291,6 +293,8 @@ pub struct VesselShared {
     pub save_failures: SaveFailures,
     /// The ROS 2 node, when `[ros2]` is enabled.
     pub ros2: Option<Arc<Ros2Node>>,
+    /// The daemon's metrics (the fleet's counts, the estimator's time).
+    pub metrics: Metrics,
 }
 
 impl VesselTask {
@@ -306,6 +310,7 @@ impl VesselTask {
             load,
             save_failures,
             ros2,
+            metrics,
         } = shared.clone();
         let (twin_config, profile) = settings.twin_for(id.as_str());
         let mut twin =
@@ -344,7 +349,8 @@ impl VesselTask {
             twin,
             nmea: NmeaDecoder::new(ReadOptions::default()),
             assembler,
-            counters: Counters::default(),
+            counters: Counters::for_fleet(metrics.fleet()),
+            metrics,
             replay: false,
             last_prediction_time_s: None,
             last_fix_wall: None,
@@ -671,7 +677,10 @@ impl VesselTask {
 
     /// Shaft speeds to the twin (and, once taken, to the live monitor).
     fn on_propellers(&mut self, speeds: &PropellerSpeeds) -> Result<(), Rejection> {
-        self.twin.on_propellers(speeds)?;
+        let started = Instant::now();
+        let taken = self.twin.on_propellers(speeds);
+        self.metrics.observe(Update::Propellers, started.elapsed());
+        taken?;
         if let Some(m) = self.monitor.as_mut() {
             m.push(DiagEvent::Propellers(*speeds));
         }
@@ -680,7 +689,10 @@ impl VesselTask {
 
     /// A fix to the twin; once taken, its outputs are published.
     async fn on_fix(&mut self, fix: &GnssFix, p: &VesselKeys) -> Result<(), Rejection> {
-        let out = self.twin.on_gnss(fix)?;
+        let started = Instant::now();
+        let taken = self.twin.on_gnss(fix);
+        self.metrics.observe(Update::Fix, started.elapsed());
+        let out = taken?;
         // The armed timer was set without a stale or a save deadline.
         self.rearm_timer |= self.stale_published || !self.unsaved || self.last_fix_wall.is_none();
         self.last_fix_wall = Some(Instant::now());

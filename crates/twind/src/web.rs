@@ -3,7 +3,10 @@
 //! A small read-only HTTP/1.1 server (axum on the daemon's tokio runtime)
 //! that serves the page, embedded in the binary at compile time from
 //! `crates/twind/web-dist/` (built from `web/`; nothing is fetched from the
-//! internet at run time), and streams the daemon's outputs live.
+//! internet at run time), and streams the daemon's outputs live. The page
+//! asks nothing of any other server unless `[web] tile_url` or
+//! `tile_overlay_url` name map tiles, which the browser then fetches (the
+//! page's content security policy lets in their origins' images only).
 //!
 //! # Routes
 //! - `GET /`, `GET /assets/...`, `GET /licenses/three.txt`: the page.
@@ -21,8 +24,9 @@
 //!   estimated track, fault estimates and measured fixes, one point a second
 //!   of message time, to fill a page opened mid-run.
 //! - `GET /api/info`: the daemon's version and the settings the page draws
-//!   (decision levels, forecast horizon).
+//!   (decision levels, forecast horizon, the chart's tiles if any).
 //! - `GET /healthz`: `ok`.
+//! - `GET /metrics`: the daemon's Prometheus metrics ([`crate::metrics`]).
 //!
 //! # Never blocking the daemon
 //! The daemon copies every output into a `tokio::sync::broadcast` channel
@@ -41,6 +45,7 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use crate::settings::TileSettings;
 use crate::{LatestStates, OutputEvent};
 use axum::Router;
 use axum::extract::{Path, State};
@@ -101,10 +106,34 @@ pub const ASSETS: &[(&str, &str, &[u8])] = &[
     ),
 ];
 
-/// The page's content security policy: everything from this server only.
-const CSP: &str = "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; \
-                   img-src 'self' data: blob:; connect-src 'self'; object-src 'none'; \
-                   base-uri 'none'; frame-ancestors 'none'";
+/// The page's content security policy: everything from this server only,
+/// and images from the configured tile servers' origins.
+fn content_security_policy(tiles: Option<&TileSettings>) -> String {
+    let mut img_src = String::from("'self' data: blob:");
+    let urls = tiles.into_iter().flat_map(|t| [&t.url, &t.overlay_url]);
+    for url in urls.flatten() {
+        let origin = tile_origin(url);
+        if !img_src.split(' ').any(|o| o == origin) {
+            img_src.push(' ');
+            img_src.push_str(origin);
+        }
+    }
+    format!(
+        "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; \
+         img-src {img_src}; connect-src 'self'; object-src 'none'; base-uri 'none'; \
+         frame-ancestors 'none'"
+    )
+}
+
+/// `scheme://host[:port]` of a tile URL template (checked in the settings:
+/// `http(s)://` and a fixed host).
+fn tile_origin(url: &str) -> &str {
+    let host_at = url.find("://").map_or(0, |i| i + 3);
+    let end = url[host_at..]
+        .find(['/', '?', '#'])
+        .map_or(url.len(), |i| host_at + i);
+    &url[..end]
+}
 
 /// What the page is told about the daemon (`GET /api/info`, and the `hello`
 /// event).
@@ -130,6 +159,8 @@ pub struct WebInfo {
     pub history_step_s: f64,
     /// History points kept per vessel.
     pub history_len: usize,
+    /// The chart's background tiles (`[web] tile_url`...), `null` for none.
+    pub tiles: Option<TileSettings>,
 }
 
 impl WebInfo {
@@ -147,6 +178,7 @@ impl WebInfo {
             prediction_interval_s: settings.publish.prediction_interval_s,
             history_step_s: HISTORY_STEP_S,
             history_len: HISTORY_LEN,
+            tiles: settings.web.tiles.clone(),
         }
     }
 }
@@ -174,6 +206,8 @@ pub struct Sources {
     pub inputs: Option<InputFeed>,
     /// What the page is told.
     pub info: WebInfo,
+    /// The daemon's metrics, served on `/metrics`.
+    pub metrics: crate::metrics::Metrics,
 }
 
 /// One event for the page.
@@ -562,6 +596,7 @@ pub async fn start(
     let local_addr = listener.local_addr()?;
     let (tx, _) = broadcast::channel(CLIENT_QUEUE);
     let hello: Arc<str> = serde_json::to_string(&sources.info)?.into();
+    let csp = HeaderValue::from_str(&content_security_policy(sources.info.tiles.as_ref()))?;
     let hub = Arc::new(Hub {
         cache: Mutex::default(),
         tx,
@@ -622,10 +657,13 @@ pub async fn start(
         .route("/api/history/{vessel}", get(history))
         .route("/api/info", get(info))
         .route("/healthz", get(|| async { "ok" }))
+        .route("/metrics", get(metrics))
         .fallback(asset)
         .with_state(AppState {
             hub: hub.clone(),
+            csp,
             shutdown: shutdown.clone(),
+            metrics: sources.metrics,
         })
         .layer(axum::middleware::map_response(common_headers));
     let task = tokio::spawn(async move {
@@ -646,7 +684,10 @@ pub async fn start(
 #[derive(Clone)]
 struct AppState {
     hub: Arc<Hub>,
+    /// The page's content security policy.
+    csp: HeaderValue,
     shutdown: CancellationToken,
+    metrics: crate::metrics::Metrics,
 }
 
 async fn common_headers(mut r: Response) -> Response {
@@ -673,7 +714,7 @@ fn json_response(body: String) -> Response {
         .into_response()
 }
 
-async fn asset(method: Method, uri: axum::http::Uri) -> Response {
+async fn asset(State(app): State<AppState>, method: Method, uri: axum::http::Uri) -> Response {
     if method != Method::GET && method != Method::HEAD {
         return (StatusCode::METHOD_NOT_ALLOWED, "read-only\n").into_response();
     }
@@ -693,10 +734,8 @@ async fn asset(method: Method, uri: axum::http::Uri) -> Response {
             )
                 .into_response();
             if path == "/" {
-                r.headers_mut().insert(
-                    header::CONTENT_SECURITY_POLICY,
-                    HeaderValue::from_static(CSP),
-                );
+                r.headers_mut()
+                    .insert(header::CONTENT_SECURITY_POLICY, app.csp.clone());
             }
             r
         }
@@ -722,6 +761,25 @@ async fn history(State(app): State<AppState>, Path(vessel): Path<String>) -> Res
         Some(body) => json_response(body),
         None => (StatusCode::NOT_FOUND, "no such vessel\n").into_response(),
     }
+}
+
+/// The daemon's metrics and the page's own (events skipped).
+async fn metrics(State(app): State<AppState>) -> Response {
+    let mut text = app.metrics.render();
+    crate::metrics::counter(
+        &mut text,
+        "twind_page_events_skipped_total",
+        "Events of the web page skipped for pages that read too slowly.",
+        app.hub.skipped.load(Ordering::Relaxed),
+    );
+    (
+        [
+            (header::CONTENT_TYPE, crate::metrics::CONTENT_TYPE),
+            (header::CACHE_CONTROL, "no-store"),
+        ],
+        text,
+    )
+        .into_response()
 }
 
 async fn info(State(app): State<AppState>) -> Response {

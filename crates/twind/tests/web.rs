@@ -38,13 +38,18 @@ struct Server {
 }
 
 async fn serve(latest: LatestStates) -> Server {
+    serve_with(latest, info()).await
+}
+
+async fn serve_with(latest: LatestStates, info: web::WebInfo) -> Server {
     let (tap, _) = broadcast::channel(1 << 16);
     let stop = CancellationToken::new();
     let sources = web::Sources {
         tap: tap.clone(),
         latest,
         inputs: None,
-        info: info(),
+        info,
+        metrics: twind::metrics::Metrics::default(),
     };
     let server = web::start("127.0.0.1:0".parse().unwrap(), sources, stop.clone())
         .await
@@ -282,6 +287,10 @@ async fn serves_the_embedded_page_and_the_api() {
         headers.contains("content-security-policy: default-src 'self'"),
         "{headers}"
     );
+    assert!(
+        headers.contains("img-src 'self' data: blob:; "),
+        "no tiles configured, images from this server only: {headers}"
+    );
     let html = String::from_utf8(body).unwrap();
     assert!(html.contains(r#"src="/assets/app.js""#), "{html}");
     assert!(html.contains(r#"data-testid="map""#), "{html}");
@@ -322,6 +331,7 @@ async fn serves_the_embedded_page_and_the_api() {
     let (_, _, body) = find("/api/info");
     let i: serde_json::Value = serde_json::from_slice(&body).unwrap();
     assert_eq!(i["fault_loss"], info().fault_loss);
+    assert!(i["tiles"].is_null(), "no tiles unless configured: {i}");
     assert_eq!(find("/healthz").2, b"ok");
     assert!(find("/etc/passwd").0.contains(" 404"));
     assert!(!find("/../Cargo.toml").0.contains(" 200"));
@@ -344,6 +354,41 @@ async fn serves_the_embedded_page_and_the_api() {
 
     s.stop.cancel();
     s.server.stopped(Duration::from_secs(5)).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn configured_tiles_reach_the_page_and_its_image_policy() {
+    let settings = twind::settings::Settings::from_toml(
+        "[web]\ntile_url = \"https://tile.openstreetmap.org/{z}/{x}/{y}.png\"\n\
+         tile_overlay_url = \"http://127.0.0.1:8099/seamark/{z}/{x}/{y}.png?v=2\"\n\
+         tile_attribution = \"© OpenStreetMap contributors\"\ntile_max_zoom = 18\n",
+    )
+    .unwrap();
+    let s = serve_with(LatestStates::default(), web::WebInfo::new(&settings)).await;
+    let addr = s.addr;
+    let (page, api) = tokio::task::spawn_blocking(move || (get(addr, "/"), get(addr, "/api/info")))
+        .await
+        .unwrap();
+    assert!(
+        page.1.contains(
+            "img-src 'self' data: blob: https://tile.openstreetmap.org http://127.0.0.1:8099; "
+        ),
+        "{}",
+        page.1
+    );
+    assert!(page.1.contains("connect-src 'self';"), "{}", page.1);
+    let i: serde_json::Value = serde_json::from_slice(&api.2).unwrap();
+    assert_eq!(
+        i["tiles"],
+        serde_json::json!({
+            "url": "https://tile.openstreetmap.org/{z}/{x}/{y}.png",
+            "overlay_url": "http://127.0.0.1:8099/seamark/{z}/{x}/{y}.png?v=2",
+            "attribution": "© OpenStreetMap contributors",
+            "max_zoom": 18,
+        })
+    );
+    s.stop.cancel();
+    s.server.stopped(Duration::from_secs(10)).await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
