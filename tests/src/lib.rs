@@ -1,6 +1,8 @@
 //! Shared helpers of the cross-crate tests: run the twin over a simulated
-//! trial and collect what the tests judge.
+//! trial and collect what the tests judge; the independent peers
+//! ([`peers`]) and how to start them.
 
+pub mod peers;
 pub mod trust;
 
 use twin_core::geodesy::wrap_pi;

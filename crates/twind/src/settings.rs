@@ -61,6 +61,8 @@ struct RawSettings {
     diagnose: RawDiagnose,
     #[serde(default)]
     daemon: RawDaemon,
+    #[serde(default)]
+    signalk: Option<crate::signalk::RawSignalk>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -275,6 +277,8 @@ pub struct Settings {
     pub twin: TwinConfig,
     /// The live residual monitor.
     pub diagnose: DiagnoseSettings,
+    /// The Signal K output (`[signalk]`), if on.
+    pub signalk: Option<crate::signalk::SignalkSettings>,
 }
 
 impl Default for Settings {
@@ -433,6 +437,10 @@ impl Settings {
             web,
             twin,
             diagnose,
+            signalk: raw
+                .signalk
+                .map(crate::signalk::SignalkSettings::from_raw)
+                .transpose()?,
         })
     }
 }
