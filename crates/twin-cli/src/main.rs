@@ -54,6 +54,10 @@ enum Command {
         /// A truth file (from `twin simulate --truth`) to score the estimates.
         #[arg(long)]
         truth: Option<PathBuf>,
+        /// Record the inputs and the twin's outputs into this MCAP file
+        /// (JSON channels, a Foxglove location; vessel `log`).
+        #[arg(long, value_name = "FILE")]
+        mcap: Option<PathBuf>,
     },
     /// Shows what the twin's model gets wrong on a log, names the cause,
     /// extends the model and measures the gain on held-out data.
@@ -154,10 +158,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             plot,
             source,
             truth,
+            mcap,
         } => {
             let mut options = AnalyzeOptions {
                 source: parse_source(&source)?,
                 keep_series: plot.is_some(),
+                mcap,
                 ..AnalyzeOptions::default()
             };
             if let Some(t) = &truth {

@@ -16,6 +16,8 @@
 //! - [`mod@assemble`]: records to the estimator's inputs (fixes with course,
 //!   speed and heading; paired propeller speeds), choosing sources.
 //! - [`mod@write`]: NMEA 0183 sentence writers and the JSON-lines writer.
+//! - [`mod@mcap`]: MCAP recordings of inputs and outputs (JSON channels with
+//!   JSON Schemas, a Foxglove location), and their inputs read back.
 //!
 //! # Invariants
 //! No parser panics on any input: every refusal is a typed value. Readers
@@ -26,6 +28,7 @@
 
 pub mod assemble;
 pub mod keys;
+pub mod mcap;
 pub mod measurement;
 pub mod messages;
 pub mod outputs;
