@@ -3,7 +3,7 @@
 //! `error: context: cause: ...`, with exit status 1.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Context;
@@ -108,6 +108,42 @@ fn one_line(e: &anyhow::Error) -> String {
     line
 }
 
+/// `twin analyze`.
+fn analyze(
+    log: &Path,
+    json: bool,
+    plot: Option<PathBuf>,
+    source: &str,
+    truth: Option<PathBuf>,
+    mcap: Option<PathBuf>,
+) -> anyhow::Result<()> {
+    let mut options = AnalyzeOptions {
+        source: parse_source(source)?,
+        keep_series: plot.is_some(),
+        mcap,
+        ..AnalyzeOptions::default()
+    };
+    if let Some(t) = &truth {
+        options.truth = Some(load_truth(t)?);
+    }
+    let analysis =
+        analyze_path(log, &options).with_context(|| format!("analysing {}", log.display()))?;
+    let mut stdout = std::io::stdout().lock();
+    if json {
+        writeln!(stdout, "{}", analysis.to_json())?;
+    } else {
+        write!(stdout, "{}", analysis.to_text())?;
+    }
+    if let Some(dir) = plot {
+        let paths = twin_cli::plots::write_plots(&analysis, &dir)
+            .with_context(|| format!("writing figures into {}", dir.display()))?;
+        for p in paths {
+            eprintln!("wrote {}", p.display());
+        }
+    }
+    Ok(())
+}
+
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Simulate {
@@ -159,32 +195,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             source,
             truth,
             mcap,
-        } => {
-            let mut options = AnalyzeOptions {
-                source: parse_source(&source)?,
-                keep_series: plot.is_some(),
-                mcap,
-                ..AnalyzeOptions::default()
-            };
-            if let Some(t) = &truth {
-                options.truth = Some(load_truth(t)?);
-            }
-            let analysis = analyze_path(&log, &options)
-                .with_context(|| format!("analysing {}", log.display()))?;
-            let mut stdout = std::io::stdout().lock();
-            if json {
-                writeln!(stdout, "{}", analysis.to_json())?;
-            } else {
-                write!(stdout, "{}", analysis.to_text())?;
-            }
-            if let Some(dir) = plot {
-                let paths = twin_cli::plots::write_plots(&analysis, &dir)
-                    .with_context(|| format!("writing figures into {}", dir.display()))?;
-                for p in paths {
-                    eprintln!("wrote {}", p.display());
-                }
-            }
-        }
+        } => analyze(&log, json, plot, &source, truth, mcap)?,
         Command::Diagnose {
             log,
             json,

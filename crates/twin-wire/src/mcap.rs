@@ -49,6 +49,27 @@ pub enum McapError {
     BadTime(f64),
 }
 
+fn gnss_properties() -> Value {
+    let number = json!({ "type": "number" });
+    let optional = json!({ "type": ["number", "null"] });
+    json!({ "time": { "type": "string", "description": "RFC 3339, UTC" },
+            "lat_deg": number, "lon_deg": number, "sog_mps": number, "cog_rad": number,
+            "heading_rad": optional, "yaw_rate_radps": optional, "hdop": optional,
+            "replay": { "type": "boolean" },
+            "time_source": { "enum": ["source", "receiver"] } })
+}
+
+fn state_properties() -> Value {
+    let number = json!({ "type": "number" });
+    json!({ "vessel": { "type": "string" },
+            "time": { "type": "string", "description": "RFC 3339, UTC" },
+            "lat_deg": number, "lon_deg": number, "north_m": number, "east_m": number,
+            "sog_mps": number, "cog_rad": number, "heading_rad": { "type": ["number", "null"] },
+            "sigma": { "type": "object" }, "nis": number,
+            "current": { "type": ["object", "null"] }, "model": { "type": "string" },
+            "stale": { "type": "boolean" }, "replay": { "type": "boolean" } })
+}
+
 /// The schema name and JSON Schema of a topic's payloads.
 pub fn schema(topic: Topic) -> (&'static str, Value) {
     let number = json!({ "type": "number" });
@@ -68,13 +89,7 @@ pub fn schema(topic: Topic) -> (&'static str, Value) {
             object(
                 "GnssMessage",
                 &["time", "lat_deg", "lon_deg", "sog_mps", "cog_rad"],
-                json!({ "time": time, "lat_deg": number, "lon_deg": number,
-                        "sog_mps": number, "cog_rad": number,
-                        "heading_rad": { "type": ["number", "null"] },
-                        "yaw_rate_radps": { "type": ["number", "null"] },
-                        "hdop": { "type": ["number", "null"] },
-                        "replay": { "type": "boolean" },
-                        "time_source": { "enum": ["source", "receiver"] } }),
+                gnss_properties(),
             ),
         ),
         Topic::Nmea => (
@@ -101,14 +116,7 @@ pub fn schema(topic: Topic) -> (&'static str, Value) {
                 &[
                     "vessel", "time", "lat_deg", "lon_deg", "sog_mps", "cog_rad", "sigma", "stale",
                 ],
-                json!({ "vessel": { "type": "string" }, "time": time, "lat_deg": number,
-                        "lon_deg": number, "north_m": number, "east_m": number,
-                        "sog_mps": number, "cog_rad": number,
-                        "heading_rad": { "type": ["number", "null"] },
-                        "sigma": { "type": "object" }, "nis": number,
-                        "current": { "type": ["object", "null"] },
-                        "model": { "type": "string" }, "stale": { "type": "boolean" },
-                        "replay": { "type": "boolean" } }),
+                state_properties(),
             ),
         ),
         Topic::TwinFault => (
@@ -211,7 +219,7 @@ pub fn location_fix(state: &StateMessage, time_ns: u64) -> Value {
 
 /// Nanoseconds since the Unix epoch of a time in seconds.
 pub fn time_ns(time_s: f64) -> Result<u64, McapError> {
-    if time_s.is_finite() && time_s >= 0.0 && time_s < 1.8e10 {
+    if (0.0..1.8e10).contains(&time_s) {
         Ok((time_s * 1e9).round() as u64)
     } else {
         Err(McapError::BadTime(time_s))

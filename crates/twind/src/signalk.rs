@@ -355,8 +355,9 @@ impl DeltaMapper {
         let time_s = twin_wire::time::parse_rfc3339(&f.time).unwrap_or(f64::NAN);
         let states = [f.thrusters.port.status, f.thrusters.starboard.status];
         let due = self.notified.get(&ev.vessel).is_none_or(|last| {
-            last.states.map(alarm_state) != states.map(alarm_state)
-                || !(time_s - last.time_s < self.settings.notification_interval_s)
+            // A time that does not compare (NaN) makes it due too.
+            let recent = time_s - last.time_s < self.settings.notification_interval_s;
+            last.states.map(alarm_state) != states.map(alarm_state) || !recent
         });
         if !due {
             return Mapped::Nothing;
@@ -753,5 +754,71 @@ mod tests {
         assert_eq!(quiet["method"], json!([]));
         assert!(quiet["message"].as_str().unwrap().contains("not excited"));
         assert_eq!(alarm_state(ThrusterStatusName::Nominal), "normal");
+    }
+
+    fn fault_event(vessel: &str, time: &str, port: ThrusterStatusName) -> OutputEvent {
+        let f = FaultMessage {
+            vessel: vessel.into(),
+            time: time.into(),
+            thrusters: twin_wire::outputs::Thrusters {
+                port: thruster(port, 0.2),
+                starboard: thruster(ThrusterStatusName::Nominal, 0.0),
+            },
+            status: port,
+            excited: true,
+            onset: None,
+            model: twin_wire::outputs::ModelName::Kinetic,
+            effectiveness_ratio: None,
+            seed_input_faults: [0.0, 0.0],
+            replay: true,
+        };
+        OutputEvent {
+            vessel: vessel.into(),
+            topic: Topic::TwinFault,
+            json: serde_json::to_string(&f).unwrap().into(),
+        }
+    }
+
+    #[test]
+    fn notifications_go_on_change_and_every_interval_and_only_for_mapped_vessels() {
+        let s = settings("url = \"ws://x/\"\nself_vessel = \"a\"\nnotification_interval_s = 5\n")
+            .unwrap();
+        let mut m = DeltaMapper::new(s);
+        let nominal = ThrusterStatusName::Nominal;
+        let sent = |m: &mut DeltaMapper, t: &str, status| {
+            matches!(m.map(&fault_event("a", t, status)), Mapped::Delta(_))
+        };
+        assert!(sent(&mut m, "2024-01-01T00:00:00Z", nominal));
+        assert!(!sent(&mut m, "2024-01-01T00:00:01Z", nominal));
+        assert!(sent(
+            &mut m,
+            "2024-01-01T00:00:02Z",
+            ThrusterStatusName::Fault
+        ));
+        assert!(!sent(
+            &mut m,
+            "2024-01-01T00:00:03Z",
+            ThrusterStatusName::Fault
+        ));
+        assert!(sent(
+            &mut m,
+            "2024-01-01T00:00:07Z",
+            ThrusterStatusName::Fault
+        ));
+        let Mapped::Delta(last) = m.map(&fault_event("a", "2024-01-01T00:00:08Z", nominal)) else {
+            panic!("a change is sent");
+        };
+        let v: Value = serde_json::from_str(&last).unwrap();
+        assert_eq!(v["context"], "vessels.self");
+        assert_eq!(v["updates"][0]["$source"], "usv-twin");
+        assert_eq!(
+            v["updates"][0]["values"][0]["path"],
+            "notifications.propulsion.port.thrustLoss"
+        );
+        assert_eq!(m.notifications(), vec![last]);
+        assert_eq!(
+            m.map(&fault_event("b", "2024-01-01T00:00:00Z", nominal)),
+            Mapped::Dropped("unmapped_vessel")
+        );
     }
 }
