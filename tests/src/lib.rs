@@ -1,6 +1,8 @@
 //! Shared helpers of the cross-crate tests: run the twin over a simulated
-//! trial and collect what the tests judge.
+//! trial and collect what the tests judge; the independent peers
+//! ([`peers`]) and how to start them.
 
+pub mod peers;
 pub mod trust;
 
 use twin_core::geodesy::wrap_pi;
@@ -48,57 +50,6 @@ pub fn run_twin(run: &SimRun, config: TwinConfig, with_propellers: bool) -> Twin
 /// Smallest signed difference of two angles, for comparing courses.
 pub fn angle_error(a: f64, b: f64) -> f64 {
     wrap_pi(a - b)
-}
-
-/// The independent peers a test needs (a program, a Python module),
-/// installed by `.ci/run` and the README's test command: a test whose peer
-/// is missing fails, naming the command that installs it.
-pub mod peers {
-    use std::path::PathBuf;
-    use std::process::Command;
-
-    /// Fails the test, saying how to install a missing peer.
-    pub fn missing(what: &str, install: &str) -> ! {
-        panic!(
-            "{what} is missing: this test needs it as an independent peer. Install it with `{install}` (.ci/run does)."
-        )
-    }
-
-    /// A program on PATH (or in `/usr/sbin`, `/sbin`), or a loud failure.
-    pub fn require_program(program: &str, install: &str) -> PathBuf {
-        let paths = std::env::var_os("PATH").unwrap_or_default();
-        std::env::split_paths(&paths)
-            .chain(["/usr/sbin".into(), "/sbin".into()])
-            .map(|p| p.join(program))
-            .find(|p| p.is_file())
-            .unwrap_or_else(|| missing(program, install))
-    }
-
-    /// A Python module importable by `python`, or a loud failure.
-    pub fn require_python_module(python: &str, module: &str, install: &str) {
-        let ok = Command::new(python)
-            .args(["-c", &format!("import {module}")])
-            .status()
-            .is_ok_and(|s| s.success());
-        if !ok {
-            missing(&format!("the Python module {module} ({python})"), install);
-        }
-    }
-
-    /// The Python interpreter (`$PYTHON`, else `python3`) once it imports
-    /// `module`; a loud failure naming `install` when it does not.
-    pub fn python_with(module: &str, install: &str) -> String {
-        let python = std::env::var("PYTHON").unwrap_or_else(|_| "python3".to_owned());
-        require_python_module(&python, module, install);
-        python
-    }
-
-    /// The path of a file under `tests/peers/`.
-    pub fn script(name: &str) -> PathBuf {
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("peers")
-            .join(name)
-    }
 }
 
 /// In-process Zenoh for end-to-end tests: loopback only, no multicast

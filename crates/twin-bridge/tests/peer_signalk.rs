@@ -23,22 +23,8 @@ type Received = (String, Vec<u8>);
 
 #[test]
 fn signalk_server_sample_data_through_the_bridge_binary() {
-    let server = require_node_module("signalk-server");
-    let nmea_port = free_tcp_port();
-    let config_dir =
-        std::env::temp_dir().join(format!("twin-bridge-signalk-{}", std::process::id()));
-    std::fs::create_dir_all(&config_dir).unwrap();
-    let _signalk = Child::spawn(
-        Command::new("node")
-            .arg(server.join("bin/signalk-server"))
-            .arg("--sample-nmea0183-data")
-            .env("PORT", free_tcp_port().to_string())
-            .env("NMEA0183PORT", nmea_port.to_string())
-            .env("SIGNALK_NODE_CONFIG_DIR", &config_dir)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null()),
-    )
-    .expect("signalk-server starts");
+    let signalk = SignalkServer::start(true);
+    let nmea_port = signalk.nmea0183_port;
 
     // A Zenoh subscriber on loopback, listening for the bridge.
     let zenoh_port = free_tcp_port();
@@ -104,7 +90,7 @@ fn signalk_server_sample_data_through_the_bridge_binary() {
 
     // Each fix is one of plaka.log's, at its time of day (the sample has
     // no date: the bridge takes the receiving computer's).
-    let plaka = std::fs::read_to_string(server.join("samples/plaka.log")).unwrap();
+    let plaka = std::fs::read_to_string(signalk.package.join("samples/plaka.log")).unwrap();
     let expected = expected_fixes(&plaka);
     for f in &fixes {
         let time_of_day = f.value.time_s.rem_euclid(86_400.0);
@@ -133,5 +119,4 @@ fn signalk_server_sample_data_through_the_bridge_binary() {
     assert!(exit.success(), "{exit:?}");
     assert!(stdout.contains("twin-bridge: published"), "{stdout}");
     session.close().wait().unwrap();
-    std::fs::remove_dir_all(&config_dir).ok();
 }

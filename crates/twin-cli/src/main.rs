@@ -59,6 +59,10 @@ enum Command {
         /// The vessel's profile (TOML, docs/profiles.md); the Otter's by default.
         #[arg(long, value_name = "FILE")]
         profile: Option<PathBuf>,
+        /// Record the inputs and the twin's outputs into this MCAP file
+        /// (JSON channels, a Foxglove location; vessel `log`).
+        #[arg(long, value_name = "FILE")]
+        mcap: Option<PathBuf>,
     },
     /// Shows what the twin's model gets wrong on a log, names the cause,
     /// extends the model and measures the gain on held-out data.
@@ -144,6 +148,44 @@ fn one_line(e: &anyhow::Error) -> String {
     line
 }
 
+/// `twin analyze`.
+fn analyze(
+    log: &Path,
+    json: bool,
+    plot: Option<PathBuf>,
+    source: &str,
+    truth: Option<PathBuf>,
+    mcap: Option<PathBuf>,
+    profile: Option<&Path>,
+) -> anyhow::Result<()> {
+    let mut options = AnalyzeOptions {
+        source: parse_source(source)?,
+        profile: load_profile(profile)?,
+        keep_series: plot.is_some(),
+        mcap,
+        ..AnalyzeOptions::default()
+    };
+    if let Some(t) = &truth {
+        options.truth = Some(load_truth(t)?);
+    }
+    let analysis =
+        analyze_path(log, &options).with_context(|| format!("analysing {}", log.display()))?;
+    let mut stdout = std::io::stdout().lock();
+    if json {
+        writeln!(stdout, "{}", analysis.to_json())?;
+    } else {
+        write!(stdout, "{}", analysis.to_text())?;
+    }
+    if let Some(dir) = plot {
+        let paths = twin_cli::plots::write_plots(&analysis, &dir)
+            .with_context(|| format!("writing figures into {}", dir.display()))?;
+        for p in paths {
+            eprintln!("wrote {}", p.display());
+        }
+    }
+    Ok(())
+}
+
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Simulate {
@@ -159,32 +201,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             source,
             truth,
             profile,
-        } => {
-            let mut options = AnalyzeOptions {
-                source: parse_source(&source)?,
-                profile: load_profile(profile.as_deref())?,
-                keep_series: plot.is_some(),
-                ..AnalyzeOptions::default()
-            };
-            if let Some(t) = &truth {
-                options.truth = Some(load_truth(t)?);
-            }
-            let analysis = analyze_path(&log, &options)
-                .with_context(|| format!("analysing {}", log.display()))?;
-            let mut stdout = std::io::stdout().lock();
-            if json {
-                writeln!(stdout, "{}", analysis.to_json())?;
-            } else {
-                write!(stdout, "{}", analysis.to_text())?;
-            }
-            if let Some(dir) = plot {
-                let paths = twin_cli::plots::write_plots(&analysis, &dir)
-                    .with_context(|| format!("writing figures into {}", dir.display()))?;
-                for p in paths {
-                    eprintln!("wrote {}", p.display());
-                }
-            }
-        }
+            mcap,
+        } => analyze(&log, json, plot, &source, truth, mcap, profile.as_deref())?,
         Command::Diagnose {
             log,
             json,

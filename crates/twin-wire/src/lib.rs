@@ -21,6 +21,8 @@
 //! - [`mod@write`]: NMEA 0183 sentence writers and the JSON-lines writer.
 //! - [`ros2`]: the outputs and the GNSS input as ROS 2 messages in CDR, and
 //!   rmw_zenoh's keys, liveliness tokens and attachment.
+//! - [`mod@mcap`]: MCAP recordings of inputs and outputs (JSON channels with
+//!   JSON Schemas, a Foxglove location), and their inputs read back.
 //!
 //! # Invariants
 //! No parser panics on any input: every refusal is a typed value. Readers
@@ -31,6 +33,7 @@
 
 pub mod assemble;
 pub mod keys;
+pub mod mcap;
 pub mod measurement;
 pub mod messages;
 pub mod outputs;

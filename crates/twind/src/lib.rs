@@ -13,6 +13,7 @@
 //! - [`metrics`]: the Prometheus metrics (`GET /metrics`).
 //! - [`notify`]: systemd's notifications (ready, watchdog, stopping).
 //! - [`stats`]: counting and rate-limited logging of rejections.
+//! - [`signalk`]: the estimates pushed to a Signal K server (`[signalk]`).
 //! - [`web`]: the operator's page (HTTP and server-sent events), served
 //!   from the outputs the daemon publishes.
 //! - `dispatch`: the dispatcher, in the input subscriber's callback:
@@ -46,6 +47,7 @@ pub mod notify;
 pub mod persist;
 pub mod ros2;
 pub mod settings;
+pub mod signalk;
 pub mod stats;
 pub mod vessel;
 pub mod web;
@@ -296,6 +298,8 @@ pub struct RunSummary {
     pub routed: u64,
     /// Per-vessel counters of every vessel task that ended.
     pub vessels: HashMap<String, Counters>,
+    /// What the Signal K output did, when it was on.
+    pub signalk: Option<crate::signalk::SignalkStats>,
 }
 
 /// The key expression of every input message of the owned vessels:
@@ -359,6 +363,7 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         notify,
     } = config;
     let settings = Arc::new(settings);
+    let (tap, signalk) = crate::signalk::attach(settings.signalk.as_ref(), tap);
     let daemon_id = match &settings.daemon.id {
         Some(id) => id.clone(),
         None => session.zid().to_string(),
@@ -519,6 +524,9 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
     tracker.wait().await;
     while let Ok((vessel, counters)) = done_rx.try_recv() {
         summary.vessels.insert(vessel, counters);
+    }
+    if let Some(signalk) = signalk {
+        summary.signalk = Some(signalk.finish(std::time::Duration::from_secs(5)).await);
     }
     answer_latest.abort();
     drop(ros2_token);

@@ -70,6 +70,8 @@ struct RawSettings {
     profiles: RawProfiles,
     #[serde(default)]
     ros2: crate::ros2::RawRos2,
+    #[serde(default)]
+    signalk: Option<crate::signalk::RawSignalk>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -348,6 +350,8 @@ pub struct Settings {
     pub ros2: crate::ros2::Ros2Settings,
     /// Vessel profiles, and which vessel uses which.
     pub profiles: ProfileSettings,
+    /// The Signal K output (`[signalk]`), if on.
+    pub signalk: Option<crate::signalk::SignalkSettings>,
 }
 
 /// The vessel profiles a daemon knows, and which vessel runs on which.
@@ -576,6 +580,10 @@ impl Settings {
             diagnose,
             profiles,
             ros2: crate::ros2::Ros2Settings::from_raw(raw.ros2)?,
+            signalk: raw
+                .signalk
+                .map(crate::signalk::SignalkSettings::from_raw)
+                .transpose()?,
         })
     }
 }

@@ -5,9 +5,7 @@
 
 #![allow(dead_code)] // Each test binary uses its own subset.
 
-use std::net::{TcpListener, UdpSocket};
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -19,77 +17,26 @@ use twin_bridge::stats::BridgeStats;
 use twin_bridge::{BridgeConfig, run};
 use twin_wire::VesselId;
 
+// The peers (found or a loud failure with the install command), free
+// ports, process groups and the Signal K server: one copy for every test
+// of the workspace, in the tests crate, included as a file so that these
+// tests do not depend on the daemon.
+#[path = "../../../../tests/src/peers.rs"]
+mod peers;
+pub use peers::*;
+
 /// The repository root.
 pub fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+    repo_root()
 }
 
 /// The npm peers' directory (`tests/peers`, installed by `.ci/run`).
 pub fn peers() -> PathBuf {
-    repo().join("tests/peers")
+    peers_dir()
 }
 
 /// How long a test waits for what it expects before it fails.
 pub const PATIENCE: Duration = Duration::from_secs(30);
-
-/// Fails the test, saying how to install a missing peer.
-pub fn missing(what: &str, install: &str) -> ! {
-    panic!(
-        "{what} is missing: this test needs it as an independent peer. Install it with `{install}` (.ci/run does)."
-    )
-}
-
-/// A program on PATH, or a loud failure.
-pub fn require_program(program: &str, install: &str) -> PathBuf {
-    let found = std::env::var_os("PATH").and_then(|paths| {
-        std::env::split_paths(&paths)
-            .map(|p| p.join(program))
-            .find(|p| p.is_file())
-    });
-    found.unwrap_or_else(|| missing(program, install))
-}
-
-/// An npm package of `tests/peers`, or a loud failure.
-pub fn require_node_module(name: &str) -> PathBuf {
-    require_program("node", "apt-get install nodejs");
-    let dir = peers().join("node_modules").join(name);
-    if !dir.join("package.json").is_file() {
-        missing(
-            &format!("the npm package {name}"),
-            "npm ci --prefix tests/peers",
-        );
-    }
-    dir
-}
-
-/// A Python module, or a loud failure.
-pub fn require_python_module(python: &str, module: &str, install: &str) {
-    let ok = Command::new(python)
-        .args(["-c", &format!("import {module}")])
-        .status()
-        .is_ok_and(|s| s.success());
-    if !ok {
-        missing(&format!("the Python module {module} ({python})"), install);
-    }
-}
-
-/// A TCP port free on loopback now.
-pub fn free_tcp_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
-/// A UDP port free on loopback now.
-pub fn free_udp_port() -> u16 {
-    UdpSocket::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
 
 /// Keeps everything the bridge publishes, in order.
 #[derive(Default)]
@@ -191,30 +138,6 @@ impl Running {
 impl Drop for Running {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
-    }
-}
-
-/// A peer server started in a process group of its own (with whatever it
-/// starts: gpsfake starts gpsd), the whole group killed when dropped.
-pub struct Child(pub std::process::Child);
-
-impl Child {
-    /// Spawns `command` as the leader of a new process group.
-    pub fn spawn(command: &mut Command) -> std::io::Result<Self> {
-        use std::os::unix::process::CommandExt;
-        command.process_group(0).spawn().map(Child)
-    }
-}
-
-impl Drop for Child {
-    fn drop(&mut self) {
-        let group = format!("-{}", self.0.id());
-        let _ = Command::new("kill")
-            .args(["-KILL", "--", &group])
-            .stderr(std::process::Stdio::null())
-            .status();
-        let _ = self.0.kill();
-        let _ = self.0.wait();
     }
 }
 

@@ -100,6 +100,7 @@ use twin_wire::time::format_rfc3339;
 use crate::quality::QualityAccumulator;
 use crate::truth::{TruthError, TruthPoint};
 
+pub mod mcap;
 mod report;
 mod text;
 
@@ -145,6 +146,14 @@ pub enum AnalyzeError {
         "unknown source `{0}`: use best, an NMEA 2000 address (0-255), an NMEA 0183 talker (GP), or n2k:ADDRESS / nmea:TALKER / json"
     )]
     BadSource(String),
+    /// The MCAP recording cannot be written.
+    #[error("MCAP recording {path}: {source}")]
+    Mcap {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: twin_wire::mcap::McapError,
+    },
     /// The truth file cannot be read.
     #[error("truth file {path}: {source}")]
     Truth {
@@ -193,6 +202,8 @@ pub struct AnalyzeOptions {
     pub truth: Option<Vec<TruthPoint>>,
     /// Keep decimated series for plots.
     pub keep_series: bool,
+    /// Record the inputs and outputs into this MCAP file ([`mcap`]).
+    pub mcap: Option<PathBuf>,
 }
 
 impl Default for AnalyzeOptions {
@@ -204,6 +215,7 @@ impl Default for AnalyzeOptions {
             read: ReadOptions::default(),
             truth: None,
             keep_series: false,
+            mcap: None,
         }
     }
 }
@@ -277,6 +289,7 @@ struct Analyzer<'a> {
     series: Option<Series>,
     forecast: Option<Forecast>,
     forecast_prop: (f64, f64, u32, Option<ShaftSpeeds>),
+    recorder: Option<mcap::AnalyzeRecorder>,
 }
 
 /// At most this many alarms are listed.
@@ -304,6 +317,10 @@ impl<'a> Analyzer<'a> {
             series: options.keep_series.then(Series::default),
             forecast: None,
             forecast_prop: (0.0, 0.0, 0, None),
+            recorder: match &options.mcap {
+                Some(path) => Some(mcap::AnalyzeRecorder::create(path)?),
+                None => None,
+            },
         })
     }
 
@@ -350,6 +367,9 @@ impl<'a> Analyzer<'a> {
             }
         };
         self.samples.fixes += 1;
+        if let Some(r) = &mut self.recorder {
+            r.step(&out);
+        }
         let kinetic = out.state.source == FaultSource::Kinetic;
         let stepped = if kinetic {
             self.twin.kinetic_state().is_some_and(|k| k.steps > 0)
@@ -505,6 +525,9 @@ impl<'a> Analyzer<'a> {
     }
 
     fn feed(&mut self, a: &Assembled) {
+        if let Some(r) = &mut self.recorder {
+            r.input(a);
+        }
         match a {
             Assembled::Fix(fix) => self.on_fix(fix),
             Assembled::Propellers(p) => self.on_propellers(p),
@@ -633,16 +656,12 @@ fn sources(
 
 /// Analyses a log file.
 pub fn analyze_path(path: &Path, options: &AnalyzeOptions) -> Result<Analysis, AnalyzeError> {
-    let file = File::open(path).map_err(|source| AnalyzeError::Open {
+    // An MCAP recording is read as its input channels.
+    let input = twin_wire::mcap::open_log_file(path).map_err(|source| AnalyzeError::Open {
         path: path.to_path_buf(),
         source,
     })?;
-    analyze_reader(
-        BufReader::with_capacity(1 << 16, file),
-        &path.display().to_string(),
-        options,
-    )
-    .map_err(|e| match e {
+    analyze_reader(input, &path.display().to_string(), options).map_err(|e| match e {
         AnalyzeError::Log { source, .. } => AnalyzeError::Log {
             path: path.to_path_buf(),
             source,
@@ -696,6 +715,9 @@ pub fn analyze_reader<R: BufRead>(
         }
     }
 
+    if let Some(r) = a.recorder.take() {
+        r.finish()?;
+    }
     let read = reader.stats().clone();
     let assembled = AssemblyCounts::from(assembler.stats());
     for (kind, n) in read.rejected_by_kind() {

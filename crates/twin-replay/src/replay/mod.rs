@@ -2,7 +2,9 @@
 //! `twin_wire::LogReader` and `FixAssembler`, and each assembled input is
 //! published as the contract's JSON on `{prefix}/{vessel}/gnss` (fixes) or
 //! `{prefix}/{vessel}/actuators` (propeller speeds and thrusts), in log time
-//! order, with the original time stamps and `replay: true`.
+//! order, with the original time stamps and `replay: true`. An MCAP
+//! recording (`twind --record`, `twin analyze --mcap`) is replayed from its
+//! input channels (`twin_wire::mcap::input_json_lines`).
 //!
 //! # Pace
 //! The message of log time `t` is published at
@@ -44,7 +46,7 @@ mod report;
 
 use std::fs::File;
 use std::future::Future;
-use std::io::{self, BufRead, BufReader};
+use std::io::{self, BufRead};
 use std::path::Path;
 use std::str::FromStr;
 use std::sync::Arc;
@@ -322,12 +324,25 @@ pub async fn run(
     result.map(|()| summary)
 }
 
-type FileOpener = Box<dyn FnMut() -> io::Result<BufReader<File>> + Send>;
+type FileOpener = Box<dyn FnMut() -> io::Result<Box<dyn BufRead + Send>> + Send>;
 
+/// Opens the log at `path` for each pass: an MCAP recording as its input
+/// channels (`twin_wire::mcap::open_log_file`), whose size in bytes is not
+/// what the reader consumes (so none is given for progress).
 fn file_opener(path: &Path) -> (String, Option<u64>, FileOpener) {
-    let size = std::fs::metadata(path).ok().map(|m| m.len());
+    let is_mcap = File::open(path)
+        .and_then(|mut f| {
+            let mut magic = [0u8; 8];
+            io::Read::read_exact(&mut f, &mut magic).map(|()| &magic == twin_wire::mcap::MAGIC)
+        })
+        .unwrap_or(false);
+    let size = if is_mcap {
+        None
+    } else {
+        std::fs::metadata(path).ok().map(|m| m.len())
+    };
     let owned = path.to_owned();
-    let open: FileOpener = Box::new(move || File::open(&owned).map(BufReader::new));
+    let open: FileOpener = Box::new(move || twin_wire::mcap::open_log_file(&owned));
     (path.display().to_string(), size, open)
 }
 
