@@ -352,15 +352,25 @@ pub mod daemon {
 
     /// [`rig`], the daemon's dispatcher reporting to `load`.
     pub async fn rig_observed(settings: Settings, load: FaultPathLoad) -> Rig {
+        rig_with(settings, |run| twind::RunConfig { load, ..run }).await
+    }
+
+    /// A daemon as [`rig`] starts it, its run configuration changed by
+    /// `adjust`.
+    pub async fn rig_with(
+        settings: Settings,
+        adjust: impl FnOnce(twind::RunConfig) -> twind::RunConfig,
+    ) -> Rig {
         let port = free_port();
         let daemon = zenoh::open(config("peer", &[port], &[])).await.unwrap();
         let input = zenoh::open(config("peer", &[], &[port])).await.unwrap();
         let output = zenoh::open(config("peer", &[], &[port])).await.unwrap();
         let cancel = CancellationToken::new();
-        let handle = tokio::spawn(twind::run(twind::RunConfig {
-            load,
-            ..twind::RunConfig::new(settings, daemon.clone(), cancel.clone())
-        }));
+        let handle = tokio::spawn(twind::run(adjust(twind::RunConfig::new(
+            settings,
+            daemon.clone(),
+            cancel.clone(),
+        ))));
         Rig {
             daemon,
             input,

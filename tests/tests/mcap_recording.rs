@@ -5,7 +5,9 @@
 //! `LocationFix` for the position, and exactly as many messages per channel
 //! as the run produced. Read back, the recording gives the same fault as
 //! the original log: through `twin analyze`, and through `twin-replay` into
-//! the daemon.
+//! the daemon. And `twind --record`: a live daemon's recording holds every
+//! input it was sent and every output it published, read by the same
+//! reader.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -13,9 +15,9 @@ use std::time::Duration;
 
 use serde_json::Value;
 use twin_cli::analyze::{AnalyzeOptions, analyze_path};
-use twin_tests::daemon::rig;
+use twin_tests::daemon::{outputs, rig, rig_with};
 use twin_tests::peers::{repo_root, require_python_module};
-use twin_tests::wire::{fault_of, messages, receive_until, simulate};
+use twin_tests::wire::{fault_of, messages, receive_until, receive_until_fault, simulate};
 use twin_wire::outputs::FaultMessage;
 use twind::settings::Settings;
 
@@ -175,5 +177,70 @@ async fn twin_replay_of_the_recording_gives_the_daemon_the_same_fault_as_the_log
         from_mcap.thrusters.port.status,
         twin_wire::outputs::ThrusterStatusName::Fault
     );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn twind_record_holds_every_input_sent_and_every_output_published() {
+    let dir = scratch("record");
+    let recording = dir.join("live.mcap");
+    let msgs = messages(&simulate("s-manoeuvre_new-broken", 0.25, 93));
+    let sent = |topic: &str| msgs.iter().filter(|(t, _)| *t == topic).count() as u64;
+    let last_time = {
+        let (_, bytes) = msgs.iter().rev().find(|(t, _)| *t == "gnss").unwrap();
+        let v: Value = serde_json::from_slice(bytes).unwrap();
+        v["time"].as_str().unwrap().to_owned()
+    };
+    let settings = Settings::from_toml("[diagnose]\nenabled = false\n").unwrap();
+    let path = recording.clone();
+    let rig = rig_with(settings, move |run| twind::RunConfig {
+        record: Some(path),
+        ..run
+    })
+    .await;
+    let sub = rig.collect("rec-1").await;
+    rig.publish("rec-1", &msgs).await;
+    let mut samples = receive_until_fault(&sub, &last_time).await;
+    let summary = rig.stop().await;
+    samples.extend(twin_tests::daemon::drain(&sub));
+    let record = summary.record.expect("a recording");
+    assert_eq!(
+        (record.dropped, record.refused, &record.error),
+        (0, 0, &None)
+    );
+
+    let read = python_summary(&recording);
+    let channels = read["channels"].as_object().unwrap();
+    let count = |topic: &str| {
+        channels
+            .get(topic)
+            .map_or(0, |c| c["messages"].as_u64().unwrap())
+    };
+    assert_eq!(count("/rec-1/gnss"), sent("gnss"));
+    assert_eq!(count("/rec-1/actuators"), sent("actuators"));
+    let states: Vec<twin_wire::outputs::StateMessage> = outputs(&samples, "twin/state");
+    let faults: Vec<FaultMessage> = outputs(&samples, "twin/fault");
+    assert!(states.len() > 100, "{} states", states.len());
+    assert_eq!(count("/rec-1/twin/state"), states.len() as u64);
+    assert_eq!(count("/rec-1/twin/location"), states.len() as u64);
+    assert_eq!(count("/rec-1/twin/fault"), faults.len() as u64);
+    for (topic, c) in channels {
+        assert_eq!(c["message_encoding"], "json", "{topic}");
+        assert_eq!(c["schema_encoding"], "jsonschema", "{topic}");
+        assert_eq!(c["valid_json"], c["messages"], "{topic}");
+        assert_eq!(
+            record.counts.get(topic),
+            c["messages"].as_u64().as_ref(),
+            "{topic}"
+        );
+    }
+    // The recording's inputs read back give the twin's conclusion.
+    let again: Value = serde_json::from_str(
+        &analyze_path(&recording, &AnalyzeOptions::default())
+            .unwrap()
+            .to_json(),
+    )
+    .unwrap();
+    assert_eq!(again["thrusters"]["port"]["status"], "fault");
     std::fs::remove_dir_all(&dir).ok();
 }

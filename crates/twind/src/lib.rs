@@ -13,6 +13,7 @@
 //! - [`metrics`]: the Prometheus metrics (`GET /metrics`).
 //! - [`notify`]: systemd's notifications (ready, watchdog, stopping).
 //! - [`stats`]: counting and rate-limited logging of rejections.
+//! - [`record`]: `--record FILE`, inputs and outputs into an MCAP file.
 //! - [`signalk`]: the estimates pushed to a Signal K server (`[signalk]`).
 //! - [`web`]: the operator's page (HTTP and server-sent events), served
 //!   from the outputs the daemon publishes.
@@ -45,6 +46,7 @@ pub mod forecast;
 pub mod metrics;
 pub mod notify;
 pub mod persist;
+pub mod record;
 pub mod ros2;
 pub mod settings;
 pub mod signalk;
@@ -300,6 +302,8 @@ pub struct RunSummary {
     pub vessels: HashMap<String, Counters>,
     /// What the Signal K output did, when it was on.
     pub signalk: Option<crate::signalk::SignalkStats>,
+    /// What the recording wrote, when there was one.
+    pub record: Option<crate::record::RecordSummary>,
 }
 
 /// The key expression of every input message of the owned vessels:
@@ -331,6 +335,8 @@ pub struct RunConfig {
     /// Tells systemd when the daemon serves, that it lives, and when it
     /// stops (disabled unless the caller enables it).
     pub notify: crate::notify::Notifier,
+    /// Record inputs and outputs into this MCAP file ([`record`]).
+    pub record: Option<std::path::PathBuf>,
 }
 
 impl RunConfig {
@@ -345,6 +351,7 @@ impl RunConfig {
             load: crate::forecast::FaultPathLoad::new(),
             metrics: crate::metrics::Metrics::default(),
             notify: crate::notify::Notifier::disabled(),
+            record: None,
         }
     }
 }
@@ -361,6 +368,7 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         load,
         metrics,
         notify,
+        record,
     } = config;
     let settings = Arc::new(settings);
     let (tap, signalk) = crate::signalk::attach(settings.signalk.as_ref(), tap);
@@ -430,6 +438,11 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         save_failures.clone(),
         load,
     );
+    // Recording starts before the inputs flow, so it holds the first.
+    let recorder = match &record {
+        Some(path) => Some(crate::record::Recorder::start(&session, &settings, path).await?),
+        None => None,
+    };
     let subscriber = {
         let dispatcher = dispatcher.clone();
         session
@@ -527,6 +540,9 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
     }
     if let Some(signalk) = signalk {
         summary.signalk = Some(signalk.finish(std::time::Duration::from_secs(5)).await);
+    }
+    if let Some(recorder) = recorder {
+        summary.record = Some(recorder.finish().await);
     }
     answer_latest.abort();
     drop(ros2_token);

@@ -57,6 +57,11 @@ struct Cli {
     /// No web page, not even in --demo or with `web.enabled` in the settings.
     #[arg(long, conflicts_with_all = ["web", "web_listen"])]
     no_web: bool,
+    /// Record the owned vessels' inputs and the twin's outputs into this
+    /// MCAP file (JSON channels, a Foxglove location; docs/deploy.md),
+    /// finished when the daemon stops.
+    #[arg(long, value_name = "FILE", conflicts_with = "demo")]
+    record: Option<PathBuf>,
     /// Serve the Prometheus metrics (`/metrics`) alone on this address
     /// (overrides `[metrics] listen`); they are also on the web page's port.
     #[arg(long, value_name = "ADDR")]
@@ -260,10 +265,21 @@ async fn main() -> anyhow::Result<()> {
             latest,
             metrics,
             notify: twind::notify::Notifier::from_env(),
+            record: cli.record.clone(),
             ..twind::RunConfig::new(settings, session.clone(), token.clone())
         })
         .await
-        .map(|_| ())
+        .map(|summary| {
+            if let Some(r) = summary.record {
+                let messages: u64 = r.counts.values().sum();
+                tracing::info!(
+                    file = %r.path.display(),
+                    messages,
+                    dropped = r.dropped,
+                    "recording finished"
+                );
+            }
+        })
     };
     if let Some(page) = page {
         if page.skipped() > 0 {
