@@ -196,10 +196,13 @@ fn the_binary_fails_clearly_on_a_missing_or_unreadable_log() {
     let (ok, _, err) = twin(&["analyze", "no/such/log.nmea"]);
     assert!(!ok);
     assert!(err.contains("cannot open log no/such/log.nmea"), "{err}");
-    // A directory opens but cannot be read.
+    // A directory is not a log: refused when it is opened.
     let (ok, _, err) = twin(&["analyze", "tests/fixtures"]);
     assert!(!ok);
-    assert!(err.contains("cannot read log tests/fixtures"), "{err}");
+    assert!(
+        err.contains("cannot open log tests/fixtures: Is a directory"),
+        "{err}"
+    );
     // Not a log.
     let (ok, _, err) = twin(&[
         "analyze",
