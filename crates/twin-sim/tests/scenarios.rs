@@ -24,9 +24,10 @@ fn shipped_scenarios_are_the_seed_trial_matrix() {
             expected.push(format!("{path}_{set}"));
         }
     }
-    // Besides the matrix: the demo's trial and the base of the diagnose
-    // tests. Each must still load; a new file has to be added here on purpose.
-    let extras = ["demo_broken-port", "diagnose_base"];
+    // Besides the matrix: the demo's trial, the base of the diagnose
+    // tests and the identification trial (docs/identification.md). Each
+    // must still load; a new file has to be added here on purpose.
+    let extras = ["demo_broken-port", "diagnose_base", "identify_heavy-otter"];
     for extra in extras {
         let s = shipped(extra);
         assert_eq!(s.name, extra);

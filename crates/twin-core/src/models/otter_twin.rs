@@ -288,18 +288,6 @@ pub struct ShaftSpeeds {
     pub starboard_radps: f64,
 }
 
-/// `1 / (1 + th_m)`, the factor the mass error puts on the accelerations,
-/// and its derivative in `th_m`; the error is held at -90 % at worst (the
-/// model's mass never reaches zero).
-fn inertia_of(mass_error: f64) -> (f64, f64) {
-    let factor = 1.0 + mass_error;
-    if factor > 0.1 {
-        (1.0 / factor, -1.0 / factor)
-    } else {
-        (10.0, 0.0)
-    }
-}
-
 /// The Otter's kinetic twin.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OtterTwin {
@@ -658,7 +646,7 @@ impl OtterTwin {
             nr * yaw_damping - cf * ints.x_w_abs_w,
         );
         // (1 + th_m) M nu' = g: the mass error divides the acceleration.
-        let (inertia, inertia_slope) = inertia_of(theta[fault::MASS]);
+        let inertia = 1.0 / (1.0 + theta[fault::MASS]);
         let nu_dot = mul(&self.mass_inverse, &(tau - coriolis + damping)) * inertia;
 
         let mut xdot = State::zeros();
@@ -725,7 +713,7 @@ impl OtterTwin {
             );
             d.b_nu = mul(&self.mass_inverse, &dtau) * inertia;
             // d nu' / d th_m = -nu' / (1 + th_m).
-            d.b_nu.set_column(fault::MASS, &(nu_dot * inertia_slope));
+            d.b_nu.set_column(fault::MASS, &(nu_dot * -inertia));
         }
         d
     }
