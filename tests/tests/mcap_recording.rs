@@ -21,6 +21,10 @@ use twin_tests::wire::{fault_of, messages, receive_until, receive_until_fault, s
 use twin_wire::outputs::FaultMessage;
 use twind::settings::Settings;
 
+/// The tests of this file drive a live daemon at full speed, and their
+/// outcome depends on it keeping up: they run one at a time.
+static SERIAL: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
+
 /// A directory of this test's own files.
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("twin-mcap-{name}-{}", std::process::id()));
@@ -59,6 +63,7 @@ fn python_summary(file: &Path) -> Value {
 
 #[test]
 fn twin_analyze_mcap_is_read_by_pypi_mcap_with_every_message_of_the_run() {
+    let _serial = SERIAL.blocking_lock();
     let dir = scratch("analyze");
     let (log, recording) = (dir.join("trial.jsonl"), dir.join("trial.mcap"));
     write_trial(&log, 91);
@@ -158,6 +163,7 @@ async fn replayed_fault(rig: &twin_tests::daemon::Rig, file: &Path, vessel: &str
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn twin_replay_of_the_recording_gives_the_daemon_the_same_fault_as_the_log() {
+    let _serial = SERIAL.lock().await;
     let dir = scratch("replay");
     let (log, recording) = (dir.join("trial.jsonl"), dir.join("trial.mcap"));
     write_trial(&log, 92);
@@ -182,6 +188,7 @@ async fn twin_replay_of_the_recording_gives_the_daemon_the_same_fault_as_the_log
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn twind_record_holds_every_input_sent_and_every_output_published() {
+    let _serial = SERIAL.lock().await;
     let dir = scratch("record");
     let recording = dir.join("live.mcap");
     let msgs = messages(&simulate("s-manoeuvre_new-broken", 0.25, 93));

@@ -32,6 +32,10 @@ use twin_wire::ros2::rmw::{Attachment, gid_of};
 use twind::settings::Settings;
 use zenoh::sample::Sample;
 
+/// The tests of this file drive a live daemon at full speed, and their
+/// outcome depends on it keeping up: they run one at a time.
+static SERIAL: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
+
 const INSTALL: &str = "python3 -m pip install -r requirements.txt";
 
 fn hex(bytes: &[u8]) -> String {
@@ -147,6 +151,7 @@ fn golden_cases() -> Vec<Case> {
 /// type hashes in the keys are rosbags' RIHS01.
 #[test]
 fn every_ros2_message_is_byte_for_byte_rosbags_cdr() {
+    let _serial = SERIAL.blocking_lock();
     let python = python_with("rosbags", INSTALL);
     let cases = golden_cases();
     let input: Vec<_> = cases
@@ -185,6 +190,7 @@ fn every_ros2_message_is_byte_for_byte_rosbags_cdr() {
 /// never a panic.
 #[test]
 fn truncated_and_garbage_cdr_is_refused() {
+    let _serial = SERIAL.blocking_lock();
     use rand::{Rng, SeedableRng};
     let mut rng = rand::rngs::StdRng::seed_from_u64(24);
     for c in golden_cases() {
@@ -255,6 +261,7 @@ fn number(text: &str) -> Option<f64> {
 /// and the node and its publishers are in the ROS 2 graph.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_ros2_subscriber_gets_the_json_fault_as_diagnostics() {
+    let _serial = SERIAL.lock().await;
     let settings = ros2_settings("");
     let fault_key = ros_key::<DiagnosticArray>(&settings, "otter1", "twin/fault");
     let (msgs, _) = trial();
@@ -424,6 +431,7 @@ async fn run_live(msgs: &Messages, over_ros2: bool) -> (FaultMessage, StateMessa
 /// trip through east/north costs float round-off only).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_navsatfix_input_gives_the_json_paths_estimates() {
+    let _serial = SERIAL.lock().await;
     let (msgs, _) = trial();
     let start = time_of(&msgs[0].1);
     let live: Messages = shifted(&msgs, now_s() - 200.0 - start)
@@ -474,6 +482,7 @@ async fn a_navsatfix_input_gives_the_json_paths_estimates() {
 /// daemon's statistics; the daemon goes on.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_ros2_input_is_refused_with_a_reason_and_counted() {
+    let _serial = SERIAL.lock().await;
     let settings = ros2_settings("");
     let fix_key = ros_key::<NavSatFix>(&settings, "otter1", "fix");
     let vel_key = ros_key::<TwistStamped>(&settings, "otter1", "vel");
