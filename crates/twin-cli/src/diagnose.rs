@@ -335,12 +335,17 @@ pub fn diagnose_path(
     config: &DiagnoseConfig,
     profile: &VesselProfile,
 ) -> Result<DiagnoseReport, DiagnoseError> {
+    let log = load_path(path, source)?;
+    diagnose_loaded(&path.display().to_string(), &log, config, profile)
+}
+
+/// Opens and reads the log at `path` ([`load`]).
+pub fn load_path(path: &Path, source: SourceChoice) -> Result<LoadedLog, DiagnoseError> {
     let file = File::open(path).map_err(|source| DiagnoseError::Open {
         path: path.to_path_buf(),
         source,
     })?;
-    let log = load(BufReader::new(file), path, source)?;
-    diagnose_loaded(&path.display().to_string(), &log, config, profile)
+    load(BufReader::new(file), path, source)
 }
 
 fn value_text(v: &serde_json::Value) -> String {

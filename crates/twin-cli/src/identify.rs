@@ -3,8 +3,6 @@
 //! what the trial could not excite, the gain on the held-out part of the
 //! trial, and the identified profile as a file (docs/profiles.md).
 
-use std::fs::File;
-use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
@@ -12,7 +10,7 @@ use twin_core::diagnose::{Identification, IdentifyConfig, identify, prepare};
 use twin_wire::assemble::SourceChoice;
 use twin_wire::profile::{IdentifiedProfile, VesselProfile};
 
-use crate::diagnose::{DiagnoseError, load};
+use crate::diagnose::{DiagnoseError, load_path};
 
 /// Why a trial gave no profile.
 #[derive(Debug, thiserror::Error)]
@@ -81,11 +79,7 @@ pub fn identify_path(
     name: &str,
     config: &IdentifyConfig,
 ) -> Result<IdentifyReport, IdentifyError> {
-    let file = File::open(path).map_err(|source| DiagnoseError::Open {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let log = load(BufReader::new(file), path, source)?;
+    let log = load_path(path, source)?;
     let not_a_trial = || IdentifyError::NotATrial {
         path: path.to_path_buf(),
     };
