@@ -1,64 +1,16 @@
-//! The catalogue of causes, their fitting on the training part, their
-//! judgement on the held-out part, and the greedy selection (see the module
-//! doc of [`crate::diagnose`]).
+//! The fitting of the catalogue's causes ([`super::catalogue`]) on the
+//! training part, their judgement on the held-out part, and the greedy
+//! selection (see the module doc of [`crate::diagnose`]). Nothing here is
+//! written per cause: each search kind of the catalogue has one fitting
+//! function.
 
+use super::catalogue::{Cause, LogKind, PlaneSearch, ScalarSearch, Search, StateSearch};
 use super::pass::{AtSplit, PassOptions, PassOut, kinetic_pass, water_pass};
 use super::prepare::Prepared;
 use super::residuals::{InnovationRecord, ResidualSummary, summarise};
 use crate::estimator::Term;
-use crate::geodesy::rad_to_compass_deg;
 use crate::models::effects::SensorEffects;
 use crate::twin::TwinConfig;
-
-/// A candidate cause of what the nominal model gets wrong.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Cause {
-    /// A water current (two states: north and east).
-    Current,
-    /// A loss of thrust per propeller (where propeller speeds are logged).
-    ThrusterLoss,
-    /// The heading sensor reads off by a constant.
-    HeadingOffset,
-    /// The reported speed over ground is scaled.
-    SogScale,
-    /// GNSS data are older than their time stamps.
-    GnssLatency,
-    /// The GNSS antenna is away from the reference point.
-    LeverArm,
-    /// The speed-through-water log reads scaled (kinematic base only).
-    StwScale,
-    /// The hull slides sideways in turns, in proportion to the turn rate
-    /// (kinematic base only; the Otter's twin models its sway).
-    Sideslip,
-}
-
-impl Cause {
-    /// Every cause, in the order they are tried.
-    pub const ALL: [Cause; 8] = [
-        Cause::Current,
-        Cause::ThrusterLoss,
-        Cause::HeadingOffset,
-        Cause::SogScale,
-        Cause::GnssLatency,
-        Cause::LeverArm,
-        Cause::StwScale,
-        Cause::Sideslip,
-    ];
-
-    /// The name used in reports and in `twin diagnose --json`.
-    pub fn name(self) -> &'static str {
-        match self {
-            Cause::Current => "current",
-            Cause::ThrusterLoss => "thruster_loss",
-            Cause::HeadingOffset => "heading_offset",
-            Cause::SogScale => "sog_scale",
-            Cause::GnssLatency => "gnss_latency",
-            Cause::LeverArm => "lever_arm",
-            Cause::StwScale => "stw_scale",
-            Cause::Sideslip => "sideslip",
-        }
-    }
-}
 
 /// The bars a cause must clear to be reported, fixed in advance.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -355,85 +307,35 @@ struct Fitted {
     states: Option<AtSplit>,
 }
 
-type StateParameters = (
-    Vec<(&'static str, f64, f64)>,
-    Option<&'static str>,
-    f64,
-    f64,
-    f64,
-);
+impl Hypothesis {
+    /// Already-accepted states, freed to be re-estimated jointly with a
+    /// candidate.
+    fn with_states_free(mut self) -> Self {
+        if matches!(self.current, Term::Fixed(_)) {
+            self.current = Term::Free;
+        }
+        if matches!(self.loss, Term::Fixed(_)) {
+            self.loss = Term::Free;
+        }
+        self
+    }
 
-/// The reported parameters of a state cause from the estimates at the split.
-fn state_parameters(cause: Cause, s: &AtSplit, acc: &Acceptance) -> StateParameters {
-    if cause == Cause::Current {
-        let [n, e] = s.current;
-        let speed = n.hypot(e);
-        // Speed and direction variances by first-order propagation.
-        let c = s.current_cov;
-        let (un, ue) = if speed > 1e-9 {
-            (n / speed, e / speed)
-        } else {
-            (1.0, 0.0)
-        };
-        let var_speed = un * un * c[0][0] + 2.0 * un * ue * c[0][1] + ue * ue * c[1][1];
-        let var_dir = if speed > 1e-9 {
-            (ue * ue * c[0][0] - 2.0 * un * ue * c[0][1] + un * un * c[1][1]) / (speed * speed)
-        } else {
-            f64::INFINITY
-        };
-        let sd = var_speed.max(0.0).sqrt();
-        (
-            vec![
-                ("speed_mps", speed, sd),
-                (
-                    "toward_deg",
-                    rad_to_compass_deg(e.atan2(n)),
-                    var_dir.max(0.0).sqrt().to_degrees(),
-                ),
-                ("north_mps", n, c[0][0].max(0.0).sqrt()),
-                ("east_mps", e, c[1][1].max(0.0).sqrt()),
-            ],
-            None,
-            speed,
-            speed / sd.max(1e-12),
-            acc.min_current_mps,
-        )
-    } else {
-        // The larger loss names the side.
-        let side = if s.loss[0] >= s.loss[1] { 0 } else { 1 };
-        (
-            vec![
-                ("loss", s.loss[side], s.loss_sigma[side]),
-                ("loss_port", s.loss[0], s.loss_sigma[0]),
-                ("loss_starboard", s.loss[1], s.loss_sigma[1]),
-            ],
-            Some(if side == 0 { "port" } else { "starboard" }),
-            s.loss[side],
-            s.loss[side] / s.loss_sigma[side].max(1e-12),
-            acc.min_loss,
-        )
+    /// Free states held at their estimates at the split.
+    fn fix_states(&mut self, s: &AtSplit) {
+        if self.current == Term::Free {
+            self.current = Term::Fixed(s.current);
+        }
+        if self.loss == Term::Free {
+            self.loss = Term::Fixed(s.loss);
+        }
     }
 }
 
-/// Why a latency fit that wants to go below zero is not a latency.
-const NEGATIVE_LATENCY: &str = "it wants a negative latency, which no receiver has: the fixes lead the model, \
-     a difference in the vessel's dynamics (a time constant, damping, mass), not a clock";
-
-/// Whether a latency fit at its physical floor (zero) would fit the
-/// training data better still below it (by `margin_nll`, at 0.1 s below):
-/// the data want a negative latency.
-fn wants_below(
-    cause: Cause,
-    v: f64,
-    lo: f64,
-    hi: f64,
-    nll: &dyn Fn(f64) -> f64,
-    margin_nll: f64,
-) -> bool {
-    cause == Cause::GnssLatency
-        && near_edge(v, lo, hi)
-        && v < 0.5 * (lo + hi)
-        && nll(lo - 0.1) < nll(lo) - margin_nll
+/// Whether a fit stopped at its lower physical bound would fit the training
+/// data better still below it (by `margin_nll`, a twentieth of the bounds'
+/// width below): the data want an impossible value.
+fn wants_below(v: f64, lo: f64, hi: f64, nll: &dyn Fn(f64) -> f64, margin_nll: f64) -> bool {
+    near_edge(v, lo, hi) && v < 0.5 * (lo + hi) && nll(lo - 0.05 * (hi - lo)) < nll(lo) - margin_nll
 }
 
 /// True when `v` is within 2 % of the width of `[lo, hi]` from an end.
@@ -442,160 +344,106 @@ fn near_edge(v: f64, lo: f64, hi: f64) -> bool {
     v <= lo + margin || v >= hi - margin
 }
 
-#[allow(clippy::too_many_lines)] // One arm per cause of the catalogue.
+/// Fits `cause` on the training part on top of the `accepted` hypothesis,
+/// as its declaration in the catalogue says.
 fn fit(ctx: &Ctx<'_>, accepted: &Hypothesis, cause: Cause) -> Option<Fitted> {
-    let acc = &ctx.config.acceptance;
-    let mut hyp = *accepted;
-    // Already-accepted states are re-estimated jointly with the candidate.
-    let free_states = |mut h: Hypothesis| {
-        if matches!(h.current, Term::Fixed(_)) {
-            h.current = Term::Free;
-        }
-        if matches!(h.loss, Term::Fixed(_)) {
-            h.loss = Term::Free;
-        }
+    // States accepted earlier are free while the candidate is fitted, as
+    // they will be.
+    let train = accepted.with_states_free();
+    match &cause.spec().search {
+        Search::States(s) => fit_states(ctx, train, cause, s),
+        Search::Scalar(s) => Some(fit_scalar(ctx, train, cause, s)),
+        Search::Plane(s) => Some(fit_plane(ctx, train, cause, s)),
+    }
+}
+
+fn fit_states(
+    ctx: &Ctx<'_>,
+    mut train: Hypothesis,
+    cause: Cause,
+    search: &StateSearch,
+) -> Option<Fitted> {
+    (search.free)(&mut train);
+    let out = ctx.pass(&train, true, false);
+    if out.failed {
+        return None;
+    }
+    let s = out.at_split;
+    train.fix_states(&s);
+    let r = (search.report)(&s, &ctx.config.acceptance);
+    Some(Fitted {
+        cause,
+        hypothesis: train,
+        parameters: r.parameters,
+        side: r.side,
+        size: r.size,
+        z: r.z,
+        practical: r.practical,
+        at_edge: false,
+        beyond_physics: None,
+        states: Some(s),
+    })
+}
+
+fn fit_scalar(ctx: &Ctx<'_>, train: Hypothesis, cause: Cause, search: &ScalarSearch) -> Fitted {
+    let with = |v: f64| {
+        let mut h = train;
+        (search.set)(&mut h, v);
         h
     };
-    let fix_states = |h: &mut Hypothesis, s: &AtSplit| {
-        if h.current == Term::Free {
-            h.current = Term::Fixed(s.current);
-        }
-        if h.loss == Term::Free {
-            h.loss = Term::Fixed(s.loss);
-        }
+    let f = |v: f64| ctx.train_nll(&with(v));
+    let (lo, hi) = search.bounds;
+    let (v, sd) = minimise_1d(&f, lo, hi, search.grid);
+    let mut h = with(v);
+    let out = ctx.pass(&h, true, false);
+    h.fix_states(&out.at_split);
+    let beyond_physics = search
+        .below_means
+        .filter(|_| wants_below(v, lo, hi, &f, ctx.config.acceptance.min_gain_nll));
+    Fitted {
+        cause,
+        hypothesis: h,
+        parameters: vec![(search.parameter, (search.shown)(v), (search.shown)(sd))],
+        side: None,
+        size: (v - search.neutral).abs(),
+        z: (v - search.neutral).abs() / sd.max(1e-12),
+        practical: (search.practical)(&ctx.config.acceptance),
+        at_edge: near_edge(v, lo, hi),
+        beyond_physics,
+        states: Some(out.at_split),
+    }
+}
+
+fn fit_plane(ctx: &Ctx<'_>, train: Hypothesis, cause: Cause, search: &PlaneSearch) -> Fitted {
+    let with = |x: f64, y: f64| {
+        let mut h = train;
+        h.effects.antenna_m = [x, y];
+        h
     };
-    match cause {
-        Cause::Current | Cause::ThrusterLoss => {
-            let mut train = free_states(hyp);
-            if cause == Cause::Current {
-                train.current = Term::Free;
-            } else {
-                train.loss = Term::Free;
-            }
-            let out = ctx.pass(&train, true, false);
-            if out.failed {
-                return None;
-            }
-            let s = out.at_split;
-            fix_states(&mut train, &s);
-            hyp = train;
-            let (parameters, side, size, z, practical) = state_parameters(cause, &s, acc);
-            Some(Fitted {
-                cause,
-                hypothesis: hyp,
-                parameters,
-                side,
-                size,
-                z,
-                practical,
-                at_edge: false,
-                beyond_physics: None,
-                states: Some(s),
-            })
-        }
-        Cause::HeadingOffset
-        | Cause::SogScale
-        | Cause::GnssLatency
-        | Cause::StwScale
-        | Cause::Sideslip => {
-            let water_only = matches!(cause, Cause::StwScale | Cause::Sideslip);
-            if (cause == Cause::HeadingOffset && !ctx.prep.has_heading)
-                || (water_only && ctx.base != BaseModel::Water)
-                || (cause == Cause::StwScale && !ctx.prep.has_stw)
-                || (cause == Cause::Sideslip && !ctx.prep.has_heading)
-            {
-                return None;
-            }
-            // States free while the effect is scanned, as they will be.
-            let train = free_states(hyp);
-            let with = |v: f64| {
-                let mut h = train;
-                match cause {
-                    Cause::HeadingOffset => h.effects.heading_offset_rad = v,
-                    Cause::SogScale => h.effects.sog_scale = v,
-                    Cause::StwScale => h.stw_scale = v,
-                    Cause::Sideslip => h.sideslip_m = v,
-                    _ => h.effects.gnss_latency_s = v,
-                }
-                h
-            };
-            let f = |v: f64| ctx.train_nll(&with(v));
-            let (lo, hi, grid, neutral) = match cause {
-                Cause::HeadingOffset => (-15f64.to_radians(), 15f64.to_radians(), 6, 0.0),
-                Cause::SogScale => (0.85, 1.15, 6, 1.0),
-                Cause::StwScale => (0.7, 1.3, 6, 1.0),
-                Cause::Sideslip => (-20.0, 20.0, 8, 0.0),
-                // A fix is stamped at or after the instant it describes, never
-                // before: a latency is physically in [0, 2] s.
-                _ => (0.0, 2.0, 6, 0.0),
-            };
-            let (v, sd) = minimise_1d(&f, lo, hi, grid);
-            let mut h = with(v);
-            let out = ctx.pass(&h, true, false);
-            fix_states(&mut h, &out.at_split);
-            let (name, shown, shown_sd, practical) = match cause {
-                Cause::HeadingOffset => (
-                    "offset_deg",
-                    v.to_degrees(),
-                    sd.to_degrees(),
-                    acc.min_heading_offset_rad,
-                ),
-                Cause::SogScale => ("scale", v, sd, acc.min_sog_scale_error),
-                Cause::StwScale => ("scale", v, sd, acc.min_stw_scale_error),
-                Cause::Sideslip => ("lateral_mps_per_radps", v, sd, acc.min_sideslip_m),
-                _ => ("latency_s", v, sd, acc.min_latency_s),
-            };
-            Some(Fitted {
-                cause,
-                hypothesis: h,
-                parameters: vec![(name, shown, shown_sd)],
-                side: None,
-                size: (v - neutral).abs(),
-                z: (v - neutral).abs() / sd.max(1e-12),
-                practical,
-                at_edge: near_edge(v, lo, hi),
-                beyond_physics: wants_below(cause, v, lo, hi, &f, acc.min_gain_nll)
-                    .then_some(NEGATIVE_LATENCY),
-                states: Some(out.at_split),
-            })
-        }
-        Cause::LeverArm => {
-            if ctx.base == BaseModel::Water && !ctx.prep.has_heading {
-                return None;
-            }
-            let train = free_states(hyp);
-            let with = |x: f64, y: f64| {
-                let mut h = train;
-                h.effects.antenna_m = [x, y];
-                h
-            };
-            // Coordinate descent: the two offsets act on different axes of
-            // the fix and are nearly independent.
-            let y0 = train.effects.antenna_m[1];
-            let (x, sx) = minimise_1d(&|v| ctx.train_nll(&with(v, y0)), -10.0, 10.0, 8);
-            let (y, sy) = minimise_1d(&|v| ctx.train_nll(&with(x, v)), -10.0, 10.0, 8);
-            let mut h = with(x, y);
-            let out = ctx.pass(&h, true, false);
-            fix_states(&mut h, &out.at_split);
-            let size = x.hypot(y);
-            let sd = if size > 1e-9 {
-                ((x * sx).powi(2) + (y * sy).powi(2)).sqrt() / size
-            } else {
-                sx.max(sy)
-            };
-            Some(Fitted {
-                cause,
-                hypothesis: h,
-                parameters: vec![("x_m", x, sx), ("y_m", y, sy)],
-                side: None,
-                size,
-                z: size / sd.max(1e-12),
-                practical: acc.min_lever_arm_m,
-                at_edge: near_edge(x, -10.0, 10.0) || near_edge(y, -10.0, 10.0),
-                beyond_physics: None,
-                states: Some(out.at_split),
-            })
-        }
+    let (lo, hi) = search.bounds;
+    let y0 = train.effects.antenna_m[1];
+    let (x, sx) = minimise_1d(&|v| ctx.train_nll(&with(v, y0)), lo, hi, search.grid);
+    let (y, sy) = minimise_1d(&|v| ctx.train_nll(&with(x, v)), lo, hi, search.grid);
+    let mut h = with(x, y);
+    let out = ctx.pass(&h, true, false);
+    h.fix_states(&out.at_split);
+    let size = x.hypot(y);
+    let sd = if size > 1e-9 {
+        ((x * sx).powi(2) + (y * sy).powi(2)).sqrt() / size
+    } else {
+        sx.max(sy)
+    };
+    Fitted {
+        cause,
+        hypothesis: h,
+        parameters: vec![(search.parameters[0], x, sx), (search.parameters[1], y, sy)],
+        side: None,
+        size,
+        z: size / sd.max(1e-12),
+        practical: (search.practical)(&ctx.config.acceptance),
+        at_edge: near_edge(x, lo, hi) || near_edge(y, lo, hi),
+        beyond_physics: None,
+        states: Some(out.at_split),
     }
 }
 
@@ -651,8 +499,138 @@ fn evidence(before: &ResidualSummary, after: &ResidualSummary) -> Vec<String> {
     lines.into_iter().take(4).map(|(_, l)| l).collect()
 }
 
+/// Each remaining candidate fitted and run over the held-out part, in the
+/// candidates' order (whatever the threads did).
+fn score_round(
+    ctx: &Ctx<'_>,
+    accepted: &Hypothesis,
+    remaining: &[Cause],
+) -> Vec<(Fitted, PassOut)> {
+    let try_one = |cause: Cause| -> Option<(Fitted, PassOut)> {
+        let f = fit(ctx, accepted, cause)?;
+        let out = ctx.pass(&f.hypothesis, false, true);
+        (!out.failed).then_some((f, out))
+    };
+    let threads = ctx.config.threads.clamp(1, remaining.len().max(1));
+    if threads == 1 {
+        return remaining.iter().filter_map(|c| try_one(*c)).collect();
+    }
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results = std::sync::Mutex::new(Vec::new());
+    std::thread::scope(|s| {
+        for _ in 0..threads {
+            s.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    let Some(cause) = remaining.get(i) else { break };
+                    if let Some(r) = try_one(*cause)
+                        && let Ok(mut v) = results.lock()
+                    {
+                        v.push((i, r));
+                    }
+                }
+            });
+        }
+    });
+    let mut v = results.into_inner().unwrap_or_default();
+    v.sort_by_key(|(i, _)| *i);
+    v.into_iter().map(|(_, r)| r).collect()
+}
+
+/// Which bar a fitted candidate with held-out gain `gain_nll` misses, if
+/// any, in the order they are checked.
+fn missed_bar(f: &Fitted, gain_nll: f64, acc: &Acceptance) -> Option<String> {
+    if let Some(why) = f.beyond_physics {
+        Some(why.to_string())
+    } else if gain_nll < acc.min_gain_nll {
+        Some(format!(
+            "held-out log-likelihood gain {gain_nll:.1} < {}",
+            acc.min_gain_nll
+        ))
+    } else if f.z < acc.min_z {
+        Some(format!(
+            "size {:.3} is only {:.1} standard deviations",
+            f.size, f.z
+        ))
+    } else if f.size < f.practical {
+        Some(format!(
+            "size {:.3} is below the practical {:.3}",
+            f.size, f.practical
+        ))
+    } else if f.at_edge {
+        Some(
+            "the fit ran to the edge of its search range: not determined (it imitates another cause)"
+                .to_string(),
+        )
+    } else {
+        None
+    }
+}
+
+/// A round's outcome: the candidate taken, if any, and the others with why.
+struct Round {
+    took: Option<(Fitted, PassOut, f64)>,
+    rejected: Vec<Rejected>,
+}
+
+/// Takes, of the scored candidates, the one with the largest held-out gain
+/// that clears every bar; the others are rejected with the bar they missed.
+fn choose(mut scored: Vec<(Fitted, PassOut)>, current_nll_test: f64, acc: &Acceptance) -> Round {
+    scored.sort_by(|a, b| {
+        (current_nll_test - b.1.nll_test).total_cmp(&(current_nll_test - a.1.nll_test))
+    });
+    let mut round = Round {
+        took: None,
+        rejected: Vec::new(),
+    };
+    for (f, out) in scored {
+        let gain = current_nll_test - out.nll_test;
+        match (missed_bar(&f, gain, acc), round.took.is_none()) {
+            (None, true) => round.took = Some((f, out, gain)),
+            (reason, _) => round.rejected.push(Rejected {
+                cause: f.cause,
+                parameters: f.parameters.clone(),
+                heldout_nll_gain: gain,
+                reason: reason.unwrap_or_else(|| "a larger gain was taken this round".to_string()),
+            }),
+        }
+    }
+    round
+}
+
+/// The finding of a taken candidate, judged against the model before it.
+fn finding(f: &Fitted, out: &PassOut, gain: f64, before_out: &PassOut) -> Finding {
+    let before = summarise(&before_out.records);
+    let after = summarise(&out.records);
+    Finding {
+        cause: f.cause,
+        parameters: f.parameters.clone(),
+        side: f.side,
+        evidence: evidence(&before, &after),
+        gain: Gain {
+            heldout_nll_gain: gain,
+            heldout_steps: out.steps_test,
+            nis_per_dof_before: before.nis_per_dof,
+            nis_per_dof_after: after.nis_per_dof,
+            prediction_rmse_before_m: before_out.rmse(),
+            prediction_rmse_after_m: out.rmse(),
+        },
+    }
+}
+
+/// State causes accepted earlier were re-estimated jointly with the last
+/// one: their reports take the joint values.
+fn refresh_state_findings(earlier: &mut [Finding], states: &AtSplit, acc: &Acceptance) {
+    for f in earlier {
+        if let Search::States(s) = &f.cause.spec().search {
+            let r = (s.report)(states, acc);
+            f.parameters = r.parameters;
+            f.side = r.side;
+        }
+    }
+}
+
 /// Diagnoses a prepared log.
-#[allow(clippy::too_many_lines)] // The greedy search's steps, read top to bottom.
 pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     let base = if prep.has_propellers {
         BaseModel::Kinetic
@@ -669,130 +647,41 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
         config,
         split,
     };
+    let log = LogKind {
+        base,
+        has_heading: prep.has_heading,
+        has_stw: prep.has_stw,
+    };
+    let acc = &config.acceptance;
     let mut accepted = Hypothesis::nominal();
     let nominal_out = ctx.pass(&accepted, false, true);
     let nominal = summarise(&nominal_out.records);
     let nominal_records = nominal_out.records.clone();
     let mut current_out = nominal_out;
-    let mut findings = Vec::new();
+    let mut findings: Vec<Finding> = Vec::new();
     let mut rejected = Vec::new();
-    let mut remaining: Vec<Cause> = Cause::ALL
-        .iter()
-        .copied()
-        .filter(|c| *c != Cause::ThrusterLoss || base == BaseModel::Kinetic)
-        .collect();
+    let mut remaining: Vec<Cause> = Cause::ALL.into_iter().filter(|c| c.applies(&log)).collect();
     while findings.len() < config.max_findings && !remaining.is_empty() {
-        // Each candidate's fit and held-out run is independent of the others.
-        let try_one = |cause: Cause| -> Option<(Fitted, PassOut)> {
-            let f = fit(&ctx, &accepted, cause)?;
-            let out = ctx.pass(&f.hypothesis, false, true);
-            (!out.failed).then_some((f, out))
-        };
-        let threads = config.threads.clamp(1, remaining.len().max(1));
-        let mut scored: Vec<(Fitted, PassOut)> = if threads == 1 {
-            remaining.iter().filter_map(|c| try_one(*c)).collect()
-        } else {
-            let next = std::sync::atomic::AtomicUsize::new(0);
-            let results = std::sync::Mutex::new(Vec::new());
-            std::thread::scope(|s| {
-                for _ in 0..threads {
-                    s.spawn(|| {
-                        loop {
-                            let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                            let Some(cause) = remaining.get(i) else { break };
-                            if let Some(r) = try_one(*cause)
-                                && let Ok(mut v) = results.lock()
-                            {
-                                v.push((i, r));
-                            }
-                        }
-                    });
-                }
-            });
-            let mut v = results.into_inner().unwrap_or_default();
-            // The order of the candidates, whatever the threads did.
-            v.sort_by_key(|(i, _)| *i);
-            v.into_iter().map(|(_, r)| r).collect()
-        };
-        scored.sort_by(|a, b| {
-            (current_out.nll_test - b.1.nll_test).total_cmp(&(current_out.nll_test - a.1.nll_test))
-        });
-        rejected.clear();
-        let mut took = None;
-        for (f, out) in scored {
-            let gain = current_out.nll_test - out.nll_test;
-            let reason = if let Some(why) = f.beyond_physics {
-                Some(why.to_string())
-            } else if gain < config.acceptance.min_gain_nll {
-                Some(format!(
-                    "held-out log-likelihood gain {gain:.1} < {}",
-                    config.acceptance.min_gain_nll
-                ))
-            } else if f.z < config.acceptance.min_z {
-                Some(format!(
-                    "size {:.3} is only {:.1} standard deviations",
-                    f.size, f.z
-                ))
-            } else if f.size < f.practical {
-                Some(format!(
-                    "size {:.3} is below the practical {:.3}",
-                    f.size, f.practical
-                ))
-            } else if f.at_edge {
-                Some("the fit ran to the edge of its search range: not determined (it imitates another cause)".to_string())
-            } else {
-                None
-            };
-            match (reason, took.is_none()) {
-                (None, true) => took = Some((f, out, gain)),
-                (reason, _) => rejected.push(Rejected {
-                    cause: f.cause,
-                    parameters: f.parameters.clone(),
-                    heldout_nll_gain: gain,
-                    reason: reason
-                        .unwrap_or_else(|| "a larger gain was taken this round".to_string()),
-                }),
-            }
-        }
-        let Some((f, out, gain)) = took else {
+        let round = choose(
+            score_round(&ctx, &accepted, &remaining),
+            current_out.nll_test,
+            acc,
+        );
+        rejected = round.rejected;
+        let Some((f, out, gain)) = round.took else {
             break;
         };
         // A cause that made the held-out fit clearly worse this round is not
         // tried again (it imitates nothing the data show).
-        let hopeless: Vec<Cause> = rejected
-            .iter()
-            .filter(|r| r.heldout_nll_gain < -config.acceptance.min_gain_nll)
-            .map(|r| r.cause)
-            .collect();
-        remaining.retain(|c| !hopeless.contains(c));
-        let before = summarise(&current_out.records);
-        let after = summarise(&out.records);
-        findings.push(Finding {
-            cause: f.cause,
-            parameters: f.parameters,
-            side: f.side,
-            evidence: evidence(&before, &after),
-            gain: Gain {
-                heldout_nll_gain: gain,
-                heldout_steps: out.steps_test,
-                nis_per_dof_before: before.nis_per_dof,
-                nis_per_dof_after: after.nis_per_dof,
-                prediction_rmse_before_m: current_out.rmse(),
-                prediction_rmse_after_m: out.rmse(),
-            },
+        remaining.retain(|c| {
+            !rejected
+                .iter()
+                .any(|r| r.cause == *c && r.heldout_nll_gain < -acc.min_gain_nll)
         });
-        // State causes accepted earlier were re-estimated jointly with this
-        // one: report their joint values.
-        if let Some(states) = f.states {
-            let n = findings.len() - 1;
-            for earlier in findings[..n].iter_mut() {
-                if matches!(earlier.cause, Cause::Current | Cause::ThrusterLoss) {
-                    let (parameters, side, ..) =
-                        state_parameters(earlier.cause, &states, &config.acceptance);
-                    earlier.parameters = parameters;
-                    earlier.side = side;
-                }
-            }
+        findings.push(finding(&f, &out, gain, &current_out));
+        if let Some(states) = &f.states {
+            let last = findings.len() - 1;
+            refresh_state_findings(&mut findings[..last], states, acc);
         }
         remaining.retain(|c| *c != f.cause);
         accepted = f.hypothesis;
@@ -818,35 +707,108 @@ mod tests {
 
     /// A latency is searched in [0, 2] s only; a fit stopped at zero is
     /// said to want a negative latency only when the data fit better below
-    /// zero, and never for another cause.
+    /// zero.
     #[test]
-    fn a_latency_fit_at_zero_wants_below_only_when_the_data_do() {
+    fn a_fit_at_its_lower_bound_wants_below_only_when_the_data_do() {
         let (lo, hi) = (0.0, 2.0);
         let wants_negative = |v: f64| 1000.0 * (v + 0.15).powi(2);
         let at_zero = |v: f64| 1000.0 * v.powi(2);
         let (v, _) = minimise_1d(&wants_negative, lo, hi, 6);
         assert!(v < 0.05, "the search stops at the floor: {v}");
-        assert!(wants_below(
-            Cause::GnssLatency,
-            v,
-            lo,
-            hi,
-            &wants_negative,
-            2.0
-        ));
+        assert!(wants_below(v, lo, hi, &wants_negative, 2.0));
         let (v, _) = minimise_1d(&at_zero, lo, hi, 6);
-        assert!(!wants_below(Cause::GnssLatency, v, lo, hi, &at_zero, 2.0));
-        assert!(!wants_below(
-            Cause::SogScale,
-            v,
-            lo,
-            hi,
-            &wants_negative,
-            2.0
-        ));
+        assert!(!wants_below(v, lo, hi, &at_zero, 2.0));
         let inside = |v: f64| 1000.0 * (v - 0.4).powi(2);
         let (v, _) = minimise_1d(&inside, lo, hi, 6);
         assert!((v - 0.4).abs() < 0.02, "{v}");
-        assert!(!wants_below(Cause::GnssLatency, v, lo, hi, &inside, 2.0));
+        assert!(!wants_below(v, lo, hi, &inside, 2.0));
+    }
+
+    /// The minimiser finds an interior minimum of a parabola, and its
+    /// standard deviation is the curvature's: `f = (x - m)^2 / (2 s^2)`
+    /// gives `s`.
+    #[test]
+    fn the_minimiser_finds_the_minimum_and_its_curvature() {
+        let (m, s) = (0.37, 0.05);
+        let f = |x: f64| (x - m).powi(2) / (2.0 * s * s);
+        let (x, sd) = minimise_1d(&f, -1.0, 1.0, 8);
+        // Seven golden-section steps leave a bracket of two grid steps times
+        // 0.618^7: the minimiser is within half of it.
+        let half_bracket = 0.25 * 0.618f64.powi(7);
+        assert!((x - m).abs() < half_bracket, "{x}");
+        assert!((sd - s).abs() < 1e-6 * s.max(1.0), "{sd}");
+        // At the edge of the range, it stops there.
+        let (x, _) = minimise_1d(&f, 0.5, 1.0, 6);
+        assert!(near_edge(x, 0.5, 1.0), "{x}");
+        // A flat function has no curvature: an infinite deviation.
+        let (_, sd) = minimise_1d(&|_| 1.0, 0.0, 1.0, 4);
+        assert!(sd.is_infinite());
+    }
+
+    fn fitted(cause: Cause, size: f64, z: f64) -> Fitted {
+        Fitted {
+            cause,
+            hypothesis: Hypothesis::nominal(),
+            parameters: Vec::new(),
+            side: None,
+            size,
+            z,
+            practical: 0.1,
+            at_edge: false,
+            beyond_physics: None,
+            states: None,
+        }
+    }
+
+    fn scored(f: Fitted, nll_test: f64) -> (Fitted, PassOut) {
+        (
+            f,
+            PassOut {
+                nll_test,
+                ..PassOut::default()
+            },
+        )
+    }
+
+    /// The candidate with the largest held-out gain that clears every bar
+    /// is taken; a larger gain that misses a bar is rejected with the bar.
+    #[test]
+    fn a_round_takes_the_largest_gain_that_clears_every_bar() {
+        let acc = Acceptance::default();
+        let mut too_small = fitted(Cause::SogScale, 0.05, 10.0);
+        too_small.practical = 0.2;
+        let mut impossible = fitted(Cause::GnssLatency, 0.0, 10.0);
+        impossible.beyond_physics = Some("no");
+        let round = choose(
+            vec![
+                scored(fitted(Cause::Current, 0.3, 2.0), 900.0),
+                scored(too_small, 850.0),
+                scored(impossible, 800.0),
+                scored(fitted(Cause::HeadingOffset, 0.2, 8.0), 950.0),
+                scored(fitted(Cause::LeverArm, 0.5, 8.0), 960.0),
+                scored(fitted(Cause::ThrusterLoss, 0.5, 8.0), 995.0),
+            ],
+            1000.0,
+            &acc,
+        );
+        let (f, _, gain) = round.took.expect("one clears the bars");
+        assert_eq!(f.cause, Cause::HeadingOffset);
+        assert_eq!(gain, 50.0);
+        let reasons: Vec<(Cause, &str)> = round
+            .rejected
+            .iter()
+            .map(|r| (r.cause, r.reason.as_str()))
+            .collect();
+        assert_eq!(reasons.len(), 5);
+        assert_eq!(reasons[0].0, Cause::GnssLatency);
+        assert_eq!(reasons[0].1, "no");
+        assert!(
+            reasons[1]
+                .1
+                .starts_with("size 0.050 is below the practical")
+        );
+        assert!(reasons[2].1.contains("standard deviations"));
+        assert_eq!(reasons[3].1, "a larger gain was taken this round");
+        assert!(reasons[4].1.starts_with("held-out log-likelihood gain 5.0"));
     }
 }

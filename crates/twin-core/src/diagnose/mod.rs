@@ -48,6 +48,7 @@
 // sigma, availability, statistics); an index loop says so most plainly.
 #![allow(clippy::needless_range_loop)]
 
+mod catalogue;
 mod fit;
 mod identify;
 mod monitor;
@@ -55,8 +56,9 @@ mod pass;
 mod prepare;
 mod residuals;
 
+pub use catalogue::Cause;
 pub use fit::{
-    Acceptance, BaseModel, Cause, DiagnoseConfig, Diagnosis, Finding, Gain, Rejected, diagnose,
+    Acceptance, BaseModel, DiagnoseConfig, Diagnosis, Finding, Gain, Rejected, diagnose,
 };
 pub use identify::{
     HeldOut, IDENTIFIED_PARAMETERS, Identification, IdentifyConfig, ParameterEstimate, identify,

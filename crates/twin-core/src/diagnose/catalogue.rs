@@ -1,0 +1,452 @@
+//! The catalogue of causes, as data: one declaration per cause says its
+//! name, what it needs of the log, how it is searched (as states the filter
+//! estimates, one scalar on its physical bounds, or the antenna's two
+//! offsets), how its parameters are reported and the size a user would act
+//! on. The fitting ([`super::fit`]) reads these declarations and has no
+//! per-cause code; a new cause is a new [`Cause`] variant, whose missing
+//! declaration [`Cause::spec`] refuses to compile.
+
+use super::fit::{Acceptance, BaseModel, Hypothesis};
+use super::pass::AtSplit;
+use crate::estimator::Term;
+use crate::geodesy::rad_to_compass_deg;
+
+/// A candidate cause of what the nominal model gets wrong.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Cause {
+    /// A water current (two states: north and east).
+    Current,
+    /// A loss of thrust per propeller (where propeller speeds are logged).
+    ThrusterLoss,
+    /// The heading sensor reads off by a constant.
+    HeadingOffset,
+    /// The reported speed over ground is scaled.
+    SogScale,
+    /// GNSS data are older than their time stamps.
+    GnssLatency,
+    /// The GNSS antenna is away from the reference point.
+    LeverArm,
+    /// The speed-through-water log reads scaled (kinematic base only).
+    StwScale,
+    /// The hull slides sideways in turns, in proportion to the turn rate
+    /// (kinematic base only; the Otter's twin models its sway).
+    Sideslip,
+}
+
+impl Cause {
+    /// Every cause, in the order they are tried.
+    pub const ALL: [Cause; 8] = [
+        Cause::Current,
+        Cause::ThrusterLoss,
+        Cause::HeadingOffset,
+        Cause::SogScale,
+        Cause::GnssLatency,
+        Cause::LeverArm,
+        Cause::StwScale,
+        Cause::Sideslip,
+    ];
+
+    /// The cause's declaration in the catalogue.
+    pub(super) fn spec(self) -> &'static CauseSpec {
+        match self {
+            Cause::Current => &CURRENT,
+            Cause::ThrusterLoss => &THRUSTER_LOSS,
+            Cause::HeadingOffset => &HEADING_OFFSET,
+            Cause::SogScale => &SOG_SCALE,
+            Cause::GnssLatency => &GNSS_LATENCY,
+            Cause::LeverArm => &LEVER_ARM,
+            Cause::StwScale => &STW_SCALE,
+            Cause::Sideslip => &SIDESLIP,
+        }
+    }
+
+    /// The name used in reports and in `twin diagnose --json`.
+    pub fn name(self) -> &'static str {
+        self.spec().name
+    }
+
+    /// Whether the cause can be tried on a log of this kind.
+    pub(super) fn applies(self, log: &LogKind) -> bool {
+        (self.spec().applies)(log)
+    }
+}
+
+/// What a log measured, and the base model it is diagnosed on: what a
+/// cause's applicability is judged on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct LogKind {
+    pub base: BaseModel,
+    pub has_heading: bool,
+    pub has_stw: bool,
+}
+
+/// A cause's declaration.
+pub(super) struct CauseSpec {
+    /// The name in reports and in `twin diagnose --json`.
+    pub name: &'static str,
+    /// Whether it can be tried on a log.
+    pub applies: fn(&LogKind) -> bool,
+    /// How it is searched, and how its parameters are reported.
+    pub search: Search,
+}
+
+/// How a cause is searched.
+pub(super) enum Search {
+    /// Estimated by the base model's filter as states, freed in the
+    /// hypothesis and read at the end of the training part.
+    States(StateSearch),
+    /// One parameter: the training likelihood's maximum within its physical
+    /// bounds.
+    Scalar(ScalarSearch),
+    /// The GNSS antenna's two offsets, by coordinate descent (they act on
+    /// different axes of the fix and are nearly independent).
+    Plane(PlaneSearch),
+}
+
+/// The reported parameters of a state cause, the size compared with the
+/// bars, its z, and the practical size.
+pub(super) struct StateReport {
+    pub parameters: Vec<(&'static str, f64, f64)>,
+    pub side: Option<&'static str>,
+    pub size: f64,
+    pub z: f64,
+    pub practical: f64,
+}
+
+/// A state cause.
+pub(super) struct StateSearch {
+    /// Frees the cause's states in a hypothesis.
+    pub free: fn(&mut Hypothesis),
+    /// Its report from the estimates at the split.
+    pub report: fn(&AtSplit, &Acceptance) -> StateReport,
+}
+
+/// A one-parameter cause.
+pub(super) struct ScalarSearch {
+    /// The parameter's name in reports.
+    pub parameter: &'static str,
+    /// The physical bounds, in the hypothesis' unit; the search runs
+    /// within them.
+    pub bounds: (f64, f64),
+    /// Grid points before the golden-section refinement.
+    pub grid: usize,
+    /// The value of "no effect".
+    pub neutral: f64,
+    /// Sets the parameter in a hypothesis.
+    pub set: fn(&mut Hypothesis, f64),
+    /// The reported value (and standard deviation) from the hypothesis'.
+    pub shown: fn(f64) -> f64,
+    /// The smallest size worth reporting, in the hypothesis' unit.
+    pub practical: fn(&Acceptance) -> f64,
+    /// What a fit that wants to go below the lower bound is evidence of
+    /// (`None`: the bound is a search range only).
+    pub below_means: Option<&'static str>,
+}
+
+/// The antenna's two offsets.
+pub(super) struct PlaneSearch {
+    /// The parameters' names in reports.
+    pub parameters: [&'static str; 2],
+    /// Each offset's bounds, m.
+    pub bounds: (f64, f64),
+    /// Grid points per offset.
+    pub grid: usize,
+    /// The smallest offset worth reporting, m.
+    pub practical: fn(&Acceptance) -> f64,
+}
+
+fn always(_: &LogKind) -> bool {
+    true
+}
+
+fn identity(v: f64) -> f64 {
+    v
+}
+
+fn free_current(h: &mut Hypothesis) {
+    h.current = Term::Free;
+}
+
+fn free_losses(h: &mut Hypothesis) {
+    h.loss = Term::Free;
+}
+
+/// The current's speed and direction, with variances by first-order
+/// propagation from its north and east components.
+fn current_report(s: &AtSplit, acc: &Acceptance) -> StateReport {
+    let [n, e] = s.current;
+    let speed = n.hypot(e);
+    let c = s.current_cov;
+    let (un, ue) = if speed > 1e-9 {
+        (n / speed, e / speed)
+    } else {
+        (1.0, 0.0)
+    };
+    let var_speed = un * un * c[0][0] + 2.0 * un * ue * c[0][1] + ue * ue * c[1][1];
+    let var_dir = if speed > 1e-9 {
+        (ue * ue * c[0][0] - 2.0 * un * ue * c[0][1] + un * un * c[1][1]) / (speed * speed)
+    } else {
+        f64::INFINITY
+    };
+    let sd = var_speed.max(0.0).sqrt();
+    StateReport {
+        parameters: vec![
+            ("speed_mps", speed, sd),
+            (
+                "toward_deg",
+                rad_to_compass_deg(e.atan2(n)),
+                var_dir.max(0.0).sqrt().to_degrees(),
+            ),
+            ("north_mps", n, c[0][0].max(0.0).sqrt()),
+            ("east_mps", e, c[1][1].max(0.0).sqrt()),
+        ],
+        side: None,
+        size: speed,
+        z: speed / sd.max(1e-12),
+        practical: acc.min_current_mps,
+    }
+}
+
+/// The losses, the larger one naming the side.
+fn loss_report(s: &AtSplit, acc: &Acceptance) -> StateReport {
+    let side = if s.loss[0] >= s.loss[1] { 0 } else { 1 };
+    StateReport {
+        parameters: vec![
+            ("loss", s.loss[side], s.loss_sigma[side]),
+            ("loss_port", s.loss[0], s.loss_sigma[0]),
+            ("loss_starboard", s.loss[1], s.loss_sigma[1]),
+        ],
+        side: Some(if side == 0 { "port" } else { "starboard" }),
+        size: s.loss[side],
+        z: s.loss[side] / s.loss_sigma[side].max(1e-12),
+        practical: acc.min_loss,
+    }
+}
+
+/// Why a latency fit that wants to go below zero is not a latency.
+pub(super) const NEGATIVE_LATENCY: &str = "it wants a negative latency, which no receiver has: the fixes lead the model, \
+     a difference in the vessel's dynamics (a time constant, damping, mass), not a clock";
+
+static CURRENT: CauseSpec = CauseSpec {
+    name: "current",
+    applies: always,
+    search: Search::States(StateSearch {
+        free: free_current,
+        report: current_report,
+    }),
+};
+
+static THRUSTER_LOSS: CauseSpec = CauseSpec {
+    name: "thruster_loss",
+    applies: |log| log.base == BaseModel::Kinetic,
+    search: Search::States(StateSearch {
+        free: free_losses,
+        report: loss_report,
+    }),
+};
+
+static HEADING_OFFSET: CauseSpec = CauseSpec {
+    name: "heading_offset",
+    applies: |log| log.has_heading,
+    search: Search::Scalar(ScalarSearch {
+        parameter: "offset_deg",
+        bounds: (-15f64.to_radians(), 15f64.to_radians()),
+        grid: 6,
+        neutral: 0.0,
+        set: |h, v| h.effects.heading_offset_rad = v,
+        shown: f64::to_degrees,
+        practical: |acc| acc.min_heading_offset_rad,
+        below_means: None,
+    }),
+};
+
+static SOG_SCALE: CauseSpec = CauseSpec {
+    name: "sog_scale",
+    applies: always,
+    search: Search::Scalar(ScalarSearch {
+        parameter: "scale",
+        bounds: (0.85, 1.15),
+        grid: 6,
+        neutral: 1.0,
+        set: |h, v| h.effects.sog_scale = v,
+        shown: identity,
+        practical: |acc| acc.min_sog_scale_error,
+        below_means: None,
+    }),
+};
+
+static GNSS_LATENCY: CauseSpec = CauseSpec {
+    name: "gnss_latency",
+    applies: always,
+    // A fix is stamped at or after the instant it describes, never before:
+    // a latency is physically in [0, 2] s.
+    search: Search::Scalar(ScalarSearch {
+        parameter: "latency_s",
+        bounds: (0.0, 2.0),
+        grid: 6,
+        neutral: 0.0,
+        set: |h, v| h.effects.gnss_latency_s = v,
+        shown: identity,
+        practical: |acc| acc.min_latency_s,
+        below_means: Some(NEGATIVE_LATENCY),
+    }),
+};
+
+static LEVER_ARM: CauseSpec = CauseSpec {
+    name: "lever_arm",
+    // The water base needs a heading to turn a body offset into the fix's.
+    applies: |log| log.base == BaseModel::Kinetic || log.has_heading,
+    search: Search::Plane(PlaneSearch {
+        parameters: ["x_m", "y_m"],
+        bounds: (-10.0, 10.0),
+        grid: 8,
+        practical: |acc| acc.min_lever_arm_m,
+    }),
+};
+
+static STW_SCALE: CauseSpec = CauseSpec {
+    name: "stw_scale",
+    applies: |log| log.base == BaseModel::Water && log.has_stw,
+    search: Search::Scalar(ScalarSearch {
+        parameter: "scale",
+        bounds: (0.7, 1.3),
+        grid: 6,
+        neutral: 1.0,
+        set: |h, v| h.stw_scale = v,
+        shown: identity,
+        practical: |acc| acc.min_stw_scale_error,
+        below_means: None,
+    }),
+};
+
+static SIDESLIP: CauseSpec = CauseSpec {
+    name: "sideslip",
+    applies: |log| log.base == BaseModel::Water && log.has_heading,
+    search: Search::Scalar(ScalarSearch {
+        parameter: "lateral_mps_per_radps",
+        bounds: (-20.0, 20.0),
+        grid: 8,
+        neutral: 0.0,
+        set: |h, v| h.sideslip_m = v,
+        shown: identity,
+        practical: |acc| acc.min_sideslip_m,
+        below_means: None,
+    }),
+};
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn kinds() -> Vec<LogKind> {
+        let mut v = Vec::new();
+        for base in [BaseModel::Kinetic, BaseModel::Water] {
+            for has_heading in [false, true] {
+                for has_stw in [false, true] {
+                    v.push(LogKind {
+                        base,
+                        has_heading,
+                        has_stw,
+                    });
+                }
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn every_cause_is_declared_once_with_a_unique_name() {
+        let names: Vec<&str> = Cause::ALL.iter().map(|c| c.name()).collect();
+        for (i, n) in names.iter().enumerate() {
+            assert!(!n.is_empty());
+            assert!(
+                !names[..i].contains(n),
+                "{n} is declared twice in the catalogue"
+            );
+        }
+        for (i, a) in Cause::ALL.iter().enumerate() {
+            for b in &Cause::ALL[..i] {
+                assert!(
+                    !std::ptr::eq(a.spec(), b.spec()),
+                    "{a:?} and {b:?} share a declaration"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn every_scalar_search_has_its_neutral_value_inside_its_bounds() {
+        for c in Cause::ALL {
+            if let Search::Scalar(s) = &c.spec().search {
+                let (lo, hi) = s.bounds;
+                assert!(lo < hi, "{c:?}");
+                assert!(
+                    (lo..=hi).contains(&s.neutral),
+                    "{c:?}: {} outside [{lo}, {hi}]",
+                    s.neutral
+                );
+                assert!(s.grid >= 2, "{c:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_latency_is_searched_on_its_physical_bounds_only() {
+        let Search::Scalar(s) = &Cause::GnssLatency.spec().search else {
+            panic!("the latency is one scalar");
+        };
+        assert_eq!(s.bounds, (0.0, 2.0));
+        assert_eq!(s.below_means, Some(NEGATIVE_LATENCY));
+        let mut h = Hypothesis::nominal();
+        (s.set)(&mut h, 0.3);
+        assert_eq!(h.effects.gnss_latency_s, 0.3);
+    }
+
+    #[test]
+    fn applicability_follows_what_the_log_measured() {
+        for kind in kinds() {
+            let applies = |c: Cause| c.applies(&kind);
+            assert!(applies(Cause::Current) && applies(Cause::SogScale));
+            assert!(applies(Cause::GnssLatency));
+            assert_eq!(
+                applies(Cause::ThrusterLoss),
+                kind.base == BaseModel::Kinetic
+            );
+            assert_eq!(applies(Cause::HeadingOffset), kind.has_heading);
+            assert_eq!(
+                applies(Cause::StwScale),
+                kind.base == BaseModel::Water && kind.has_stw
+            );
+            assert_eq!(
+                applies(Cause::Sideslip),
+                kind.base == BaseModel::Water && kind.has_heading
+            );
+            assert_eq!(
+                applies(Cause::LeverArm),
+                kind.base == BaseModel::Kinetic || kind.has_heading
+            );
+        }
+    }
+
+    #[test]
+    fn the_larger_loss_names_the_side_and_a_current_its_direction() {
+        let acc = Acceptance::default();
+        let s = AtSplit {
+            loss: [0.05, 0.3],
+            loss_sigma: [0.01, 0.02],
+            ..AtSplit::default()
+        };
+        let r = loss_report(&s, &acc);
+        assert_eq!(r.side, Some("starboard"));
+        assert_eq!((r.size, r.z), (0.3, 15.0));
+        let s = AtSplit {
+            current: [0.0, 0.2],
+            current_cov: [[1e-4, 0.0], [0.0, 1e-4]],
+            ..AtSplit::default()
+        };
+        let r = current_report(&s, &acc);
+        assert!((r.size - 0.2).abs() < 1e-12);
+        assert!((r.parameters[1].1 - 90.0).abs() < 1e-9, "toward east");
+        assert!((r.z - 20.0).abs() < 1e-9);
+    }
+}
