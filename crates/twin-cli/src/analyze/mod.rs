@@ -89,7 +89,8 @@ use twin_core::geodesy::{LatLon, NorthEast, rad_to_compass_deg};
 use twin_core::models::otter_twin::{ShaftSpeeds, idx};
 use twin_core::sample::{GnssFix, PropellerSpeeds};
 use twin_core::twin::{
-    FaultReport, FaultSource, ForecastPoint, StateReport, TwinConfig, TwinConfigError, VesselTwin,
+    FaultReport, FaultSource, ForecastPoint, StateReport, StepOutput, TwinConfig, TwinConfigError,
+    VesselTwin,
 };
 use twin_wire::assemble::{Assembled, AssemblerConfig, FixAssembler, SourceChoice};
 use twin_wire::measurement::{Source, Talker};
@@ -348,7 +349,6 @@ impl<'a> Analyzer<'a> {
         Some((first.time_s + last.time_s) / 2.0)
     }
 
-    #[allow(clippy::too_many_lines)] // Not yet split into steps.
     fn on_fix(&mut self, fix: &GnssFix) {
         let out = match self.twin.on_gnss(fix) {
             Ok(out) => out,
@@ -371,40 +371,62 @@ impl<'a> Analyzer<'a> {
             r.step(&out);
         }
         let kinetic = out.state.source == FaultSource::Kinetic;
+        self.record_quality(&out, kinetic);
+        if kinetic {
+            self.record_kinetic(&out);
+        }
+        let seed = self.record_seed_peaks();
+        self.record_alarms(&out);
+        self.record_series(fix, &out, kinetic, seed);
+        self.last_state = Some(out.state);
+        self.advance_forecast(fix);
+    }
+
+    /// The innovations of a step that ran, into its model's quality.
+    fn record_quality(&mut self, out: &StepOutput, kinetic: bool) {
         let stepped = if kinetic {
             self.twin.kinetic_state().is_some_and(|k| k.steps > 0)
         } else {
             self.twin.seed_state().is_some_and(|s| s.steps > 0)
         };
-        if stepped {
-            let acc = if kinetic {
-                &mut self.quality_kinetic
-            } else {
-                &mut self.quality_seed
-            };
-            acc.push(
-                &out.innovation,
-                &out.innovation_available,
-                out.state.nis,
-                out.state.nis_dof,
-            );
-        }
         if kinetic {
             self.kinetic_steps += u64::from(stepped);
-            self.last_kinetic = Some(out.faults);
-            if let (Some(c), Some(k)) = (out.state.current_mps, self.twin.kinetic_state()) {
-                let var = (k.p[(idx::CURRENT_NORTH, idx::CURRENT_NORTH)]
-                    + k.p[(idx::CURRENT_EAST, idx::CURRENT_EAST)])
-                    / 2.0;
-                self.current = Some(CurrentResult {
-                    north_mps: c[0],
-                    east_mps: c[1],
-                    speed_mps: c[0].hypot(c[1]),
-                    toward_deg: rad_to_compass_deg(c[1].atan2(c[0])),
-                    sigma_mps: var.max(0.0).sqrt(),
-                });
-            }
         }
+        if !stepped {
+            return;
+        }
+        let acc = if kinetic {
+            &mut self.quality_kinetic
+        } else {
+            &mut self.quality_seed
+        };
+        acc.push(
+            &out.innovation,
+            &out.innovation_available,
+            out.state.nis,
+            out.state.nis_dof,
+        );
+    }
+
+    /// The kinetic twin's faults and current.
+    fn record_kinetic(&mut self, out: &StepOutput) {
+        self.last_kinetic = Some(out.faults);
+        if let (Some(c), Some(k)) = (out.state.current_mps, self.twin.kinetic_state()) {
+            let var = (k.p[(idx::CURRENT_NORTH, idx::CURRENT_NORTH)]
+                + k.p[(idx::CURRENT_EAST, idx::CURRENT_EAST)])
+                / 2.0;
+            self.current = Some(CurrentResult {
+                north_mps: c[0],
+                east_mps: c[1],
+                speed_mps: c[0].hypot(c[1]),
+                toward_deg: rad_to_compass_deg(c[1].atan2(c[0])),
+                sigma_mps: var.max(0.0).sqrt(),
+            });
+        }
+    }
+
+    /// The seed method's input faults with their sigmas, and their peaks.
+    fn record_seed_peaks(&mut self) -> Option<([f64; 2], [f64; 2])> {
         let seed = self.twin.seed_state().map(|s| {
             let sigma = s.fault_sigma();
             ([s.theta[0], s.theta[1]], [sigma[0], sigma[1]])
@@ -424,7 +446,11 @@ impl<'a> Analyzer<'a> {
                 *peak = Some(peak.map_or(v, |p: f64| p.max(v)));
             }
         }
-        let elapsed = self.elapsed(fix.time_s);
+        seed
+    }
+
+    /// The status changes, up to [`MAX_ALARMS`].
+    fn record_alarms(&mut self, out: &StepOutput) {
         for c in &out.changes {
             if self.alarms.len() < MAX_ALARMS {
                 self.alarms.push(Alarm {
@@ -438,35 +464,42 @@ impl<'a> Analyzer<'a> {
                 });
             }
         }
-        if let (Some(series), Some(frame)) = (self.series.as_mut(), self.twin.frame()) {
-            let m = frame.to_local(fix.position);
-            series.track.push(TrackPoint {
-                elapsed_s: elapsed,
-                measured: [m.north_m, m.east_m],
-                estimated: [out.state.local.north_m, out.state.local.east_m],
-            });
-            let (theta, theta_sigma) = seed.unwrap_or(([f64::NAN; 2], [f64::NAN; 2]));
-            let f = &out.faults;
-            series.faults.push(FaultPoint {
-                elapsed_s: elapsed,
-                kinetic,
-                loss: if kinetic {
-                    f.thrusters.map(|t| t.loss)
-                } else {
-                    [f64::NAN; 2]
-                },
-                loss_sigma: if kinetic {
-                    f.thrusters.map(|t| t.sigma)
-                } else {
-                    [f64::NAN; 2]
-                },
-                input_faults: theta,
-                input_fault_sigma: theta_sigma,
-            });
-        }
-        self.last_state = Some(out.state);
+    }
 
-        // The forecast from the middle of the run.
+    /// The track and the faults over time, when the series are kept.
+    fn record_series(
+        &mut self,
+        fix: &GnssFix,
+        out: &StepOutput,
+        kinetic: bool,
+        seed: Option<([f64; 2], [f64; 2])>,
+    ) {
+        let elapsed = self.elapsed(fix.time_s);
+        let (Some(series), Some(frame)) = (self.series.as_mut(), self.twin.frame()) else {
+            return;
+        };
+        let m = frame.to_local(fix.position);
+        series.track.push(TrackPoint {
+            elapsed_s: elapsed,
+            measured: [m.north_m, m.east_m],
+            estimated: [out.state.local.north_m, out.state.local.east_m],
+        });
+        let (theta, theta_sigma) = seed.unwrap_or(([f64::NAN; 2], [f64::NAN; 2]));
+        let f = &out.faults;
+        let kinetic_only = |v: [f64; 2]| if kinetic { v } else { [f64::NAN; 2] };
+        series.faults.push(FaultPoint {
+            elapsed_s: elapsed,
+            kinetic,
+            loss: kinetic_only(f.thrusters.map(|t| t.loss)),
+            loss_sigma: kinetic_only(f.thrusters.map(|t| t.sigma)),
+            input_faults: theta,
+            input_fault_sigma: theta_sigma,
+        });
+    }
+
+    /// The forecast from the middle of the run: started at the first fix
+    /// past the truth's middle, then fed each interval's mean shaft speeds.
+    fn advance_forecast(&mut self, fix: &GnssFix) {
         if let Some(fc) = self.forecast.as_mut() {
             let (sp, ss, n, last) = self.forecast_prop;
             let u = if n > 0 {
@@ -671,7 +704,6 @@ pub fn analyze_path(path: &Path, options: &AnalyzeOptions) -> Result<Analysis, A
 }
 
 /// Analyses a log from any reader; `name` is what the report calls it.
-#[allow(clippy::too_many_lines)] // Not yet split into steps.
 pub fn analyze_reader<R: BufRead>(
     input: R,
     name: &str,
@@ -687,34 +719,7 @@ pub fn analyze_reader<R: BufRead>(
         ..AssemblerConfig::default()
     });
     let mut a = Analyzer::new(options)?;
-    let mut out: Vec<Assembled> = Vec::new();
-    loop {
-        match reader.next() {
-            Some(Ok(record)) => {
-                if a.first_s.is_none() {
-                    a.first_s = Some(record.time_s);
-                }
-                a.last_s = record.time_s;
-                assembler.push(record, &mut out);
-            }
-            Some(Err(rejection)) => {
-                let kind = rejection.reason.kind().name();
-                a.example("reader", kind, rejection.to_string());
-                continue;
-            }
-            None => {
-                assembler.finish(&mut out);
-                for item in out.drain(..) {
-                    a.feed(&item);
-                }
-                break;
-            }
-        }
-        for item in out.drain(..) {
-            a.feed(&item);
-        }
-    }
-
+    a.read_all(&mut reader, &mut assembler);
     if let Some(r) = a.recorder.take() {
         r.finish()?;
     }
@@ -731,98 +736,14 @@ pub fn analyze_reader<R: BufRead>(
         start_s,
     });
     let prediction = a.prediction();
-    let truth = options.truth.as_ref().map(|t| {
-        let loss = t.last().and_then(|p| p.loss).map(|l| PortStarboard {
-            port: l[0],
-            starboard: l[1],
-        });
-        let loss_error = match (loss, &a.last_kinetic) {
-            (Some(l), Some(f)) => Some(PortStarboard {
-                port: f.thrusters[0].loss - l.port,
-                starboard: f.thrusters[1].loss - l.starboard,
-            }),
-            _ => None,
-        };
-        TruthComparison {
-            samples: t.len(),
-            loss,
-            loss_error,
-        }
-    });
-    if let (Some(series), Some(t), Some(frame)) =
-        (a.series.as_mut(), options.truth.as_ref(), a.twin.frame())
-    {
-        let t0 = a.first_s.unwrap_or(0.0);
-        series.truth_track = t
-            .iter()
-            .map(|p| {
-                let l: NorthEast = frame.to_local(p.position);
-                (p.time_s - t0, [l.north_m, l.east_m])
-            })
-            .collect();
-        series.truth_loss = t
-            .iter()
-            .filter_map(|p| p.loss.map(|l| (p.time_s - t0, l)))
-            .collect();
-    }
-
+    let truth = options
+        .truth
+        .as_ref()
+        .map(|t| truth_comparison(t, a.last_kinetic.as_ref()));
+    a.keep_truth_series();
     let twin_propellers_rejected: u64 = a.rejected.twin_propellers.values().sum();
-    let observable = a.last_kinetic.is_some();
-    let report = a.last_kinetic.as_ref();
-    let thrusters = ThrustersResult {
-        observable,
-        time: report.map(|f| time_text(f.time_s)),
-        status: report
-            .map_or(ThrusterStatus::NotExcited, |f| f.status)
-            .into(),
-        onset: report
-            .and_then(|f| {
-                f.thrusters
-                    .iter()
-                    .filter_map(|t| t.decision.onset_time_s)
-                    .reduce(f64::min)
-            })
-            .map(time_text),
-        effectiveness_ratio: report
-            .map(|f| f.effectiveness_ratio())
-            .filter(|(v, s)| v.is_finite() && s.is_finite())
-            .map(|(value, sigma)| Ratio { value, sigma }),
-        note: if observable {
-            KINETIC_NOTE
-        } else {
-            NOT_OBSERVABLE_NOTE
-        },
-        port: thruster_result(report, 0, a.kinetic_steps, twin_propellers_rejected),
-        starboard: thruster_result(report, 1, a.kinetic_steps, twin_propellers_rejected),
-    };
-    let seed_state = a.twin.seed_state();
-    let seed_method = SeedMethodResult {
-        input_faults: seed_state.map(|s| [s.theta[0], s.theta[1]]),
-        input_fault_sigma: seed_state.map(|s| {
-            let sg = s.fault_sigma();
-            [sg[0], sg[1]]
-        }),
-        input_fault_peak: a.seed_peak,
-        thruster_values: a.twin.seed_thruster_loss(),
-        thruster_peak: a.seed_thruster_peak,
-        note: SEED_NOTE,
-    };
-    let final_state = a.last_state.map(|s| FinalState {
-        time: time_text(s.time_s),
-        lat_deg: s.position.lat_deg,
-        lon_deg: s.position.lon_deg,
-        north_m: s.local.north_m,
-        east_m: s.local.east_m,
-        sigma_north_m: s.position_sigma_m[0],
-        sigma_east_m: s.position_sigma_m[1],
-        sog_mps: s.sog_mps,
-        cog_rad: s.cog_rad,
-        heading_rad: s.heading_rad,
-        model: match s.source {
-            FaultSource::Kinetic => "kinetic",
-            FaultSource::SeedMethod => "seed_method",
-        },
-    });
+    let thrusters = a.thrusters(twin_propellers_rejected);
+    let observable = thrusters.observable;
     let model = if observable {
         Some("kinetic")
     } else if a.last_state.is_some() {
@@ -850,16 +771,160 @@ pub fn analyze_reader<R: BufRead>(
         thrusters,
         alarms: a.alarms.clone(),
         current: a.current,
-        seed_method,
+        seed_method: a.seed_method(),
         quality: QualityByModel {
             kinetic: a.quality_kinetic.summary(),
             seed_method: a.quality_seed.summary(),
         },
-        final_state,
+        final_state: a.last_state.map(final_state),
         truth,
         prediction,
         series: a.series.take(),
     })
+}
+
+/// The final loss estimates against the truth's last.
+fn truth_comparison(t: &[TruthPoint], last_kinetic: Option<&FaultReport>) -> TruthComparison {
+    let loss = t.last().and_then(|p| p.loss).map(|l| PortStarboard {
+        port: l[0],
+        starboard: l[1],
+    });
+    let loss_error = match (loss, last_kinetic) {
+        (Some(l), Some(f)) => Some(PortStarboard {
+            port: f.thrusters[0].loss - l.port,
+            starboard: f.thrusters[1].loss - l.starboard,
+        }),
+        _ => None,
+    };
+    TruthComparison {
+        samples: t.len(),
+        loss,
+        loss_error,
+    }
+}
+
+/// The state at the last fix, as reported.
+fn final_state(s: StateReport) -> FinalState {
+    FinalState {
+        time: time_text(s.time_s),
+        lat_deg: s.position.lat_deg,
+        lon_deg: s.position.lon_deg,
+        north_m: s.local.north_m,
+        east_m: s.local.east_m,
+        sigma_north_m: s.position_sigma_m[0],
+        sigma_east_m: s.position_sigma_m[1],
+        sog_mps: s.sog_mps,
+        cog_rad: s.cog_rad,
+        heading_rad: s.heading_rad,
+        model: match s.source {
+            FaultSource::Kinetic => "kinetic",
+            FaultSource::SeedMethod => "seed_method",
+        },
+    }
+}
+
+impl Analyzer<'_> {
+    /// Reads the whole log through the assembler into the twin.
+    fn read_all<R: BufRead>(&mut self, reader: &mut LogReader<R>, assembler: &mut FixAssembler) {
+        let mut out: Vec<Assembled> = Vec::new();
+        loop {
+            match reader.next() {
+                Some(Ok(record)) => {
+                    if self.first_s.is_none() {
+                        self.first_s = Some(record.time_s);
+                    }
+                    self.last_s = record.time_s;
+                    assembler.push(record, &mut out);
+                }
+                Some(Err(rejection)) => {
+                    let kind = rejection.reason.kind().name();
+                    self.example("reader", kind, rejection.to_string());
+                    continue;
+                }
+                None => {
+                    assembler.finish(&mut out);
+                    for item in out.drain(..) {
+                        self.feed(&item);
+                    }
+                    break;
+                }
+            }
+            for item in out.drain(..) {
+                self.feed(&item);
+            }
+        }
+    }
+
+    /// The truth's track and losses beside the estimates, when the series
+    /// are kept.
+    fn keep_truth_series(&mut self) {
+        if let (Some(series), Some(t), Some(frame)) = (
+            self.series.as_mut(),
+            self.options.truth.as_ref(),
+            self.twin.frame(),
+        ) {
+            let t0 = self.first_s.unwrap_or(0.0);
+            series.truth_track = t
+                .iter()
+                .map(|p| {
+                    let l: NorthEast = frame.to_local(p.position);
+                    (p.time_s - t0, [l.north_m, l.east_m])
+                })
+                .collect();
+            series.truth_loss = t
+                .iter()
+                .filter_map(|p| p.loss.map(|l| (p.time_s - t0, l)))
+                .collect();
+        }
+    }
+
+    /// The thrusters' results from the last kinetic report.
+    fn thrusters(&self, twin_propellers_rejected: u64) -> ThrustersResult {
+        let observable = self.last_kinetic.is_some();
+        let report = self.last_kinetic.as_ref();
+        ThrustersResult {
+            observable,
+            time: report.map(|f| time_text(f.time_s)),
+            status: report
+                .map_or(ThrusterStatus::NotExcited, |f| f.status)
+                .into(),
+            onset: report
+                .and_then(|f| {
+                    f.thrusters
+                        .iter()
+                        .filter_map(|t| t.decision.onset_time_s)
+                        .reduce(f64::min)
+                })
+                .map(time_text),
+            effectiveness_ratio: report
+                .map(|f| f.effectiveness_ratio())
+                .filter(|(v, s)| v.is_finite() && s.is_finite())
+                .map(|(value, sigma)| Ratio { value, sigma }),
+            note: if observable {
+                KINETIC_NOTE
+            } else {
+                NOT_OBSERVABLE_NOTE
+            },
+            port: thruster_result(report, 0, self.kinetic_steps, twin_propellers_rejected),
+            starboard: thruster_result(report, 1, self.kinetic_steps, twin_propellers_rejected),
+        }
+    }
+
+    /// The seed method's input faults and their peaks.
+    fn seed_method(&self) -> SeedMethodResult {
+        let seed_state = self.twin.seed_state();
+        SeedMethodResult {
+            input_faults: seed_state.map(|s| [s.theta[0], s.theta[1]]),
+            input_fault_sigma: seed_state.map(|s| {
+                let sg = s.fault_sigma();
+                [sg[0], sg[1]]
+            }),
+            input_fault_peak: self.seed_peak,
+            thruster_values: self.twin.seed_thruster_loss(),
+            thruster_peak: self.seed_thruster_peak,
+            note: SEED_NOTE,
+        }
+    }
 }
 
 #[cfg(test)]
