@@ -154,6 +154,29 @@ pub fn instrument_comparison(r: &DiagnoseReport) -> Option<([f64; 2], [f64; 2], 
     Some(([speed, toward], [i.speed_mps, i.toward_deg], diff, ddir))
 }
 
+/// The base model, the steps and what the log measured.
+fn model_text(r: &DiagnoseReport) -> String {
+    let measured: Vec<&str> = [
+        (r.measured.heading, "heading"),
+        (r.measured.speed_through_water, "STW"),
+        (r.measured.propellers, "propellers"),
+    ]
+    .iter()
+    .filter(|(m, _)| *m)
+    .map(|(_, n)| *n)
+    .collect();
+    format!(
+        "{} ({} steps; {})",
+        r.base_model,
+        r.steps,
+        if measured.is_empty() {
+            "position only".to_string()
+        } else {
+            measured.join(", ")
+        }
+    )
+}
+
 /// The markdown of the diagnosed logs.
 pub fn markdown(logs: &[(String, LogOutcome)]) -> String {
     let mut s = String::new();
@@ -173,30 +196,17 @@ pub fn markdown(logs: &[(String, LogOutcome)]) -> String {
             }
             LogOutcome::Diagnosed(r) => r,
         };
-        let measured: Vec<&str> = [
-            (r.measured.heading, "heading"),
-            (r.measured.speed_through_water, "STW"),
-            (r.measured.propellers, "propellers"),
-        ]
-        .iter()
-        .filter(|(m, _)| *m)
-        .map(|(_, n)| *n)
-        .collect();
-        let model = format!(
-            "{} ({} steps; {})",
-            r.base_model,
-            r.steps,
-            if measured.is_empty() {
-                "position only".to_string()
-            } else {
-                measured.join(", ")
-            }
-        );
+        let model = model_text(r);
         if r.findings.is_empty() {
             let _ = writeln!(
                 s,
-                "| {name} | {model} | {} | none: no cause clears the bars | - |",
-                what_is_wrong(r)
+                "| {name} | {model} | {} | none: no cause clears the bars{} | - |",
+                what_is_wrong(r),
+                if r.unexplained.is_some() {
+                    "; **unexplained**"
+                } else {
+                    ""
+                }
             );
             continue;
         }
@@ -212,6 +222,17 @@ pub fn markdown(logs: &[(String, LogOutcome)]) -> String {
                 f.cause,
                 parameters_text(f),
                 gain_text(f)
+            );
+        }
+        if let Some(u) = &r.unexplained {
+            let _ = writeln!(
+                s,
+                "|  |  | (after the findings) | **unexplained**: held-out NIS/dof {:.2}{} | - |",
+                u.nis_per_dof,
+                u.biased
+                    .iter()
+                    .map(|b| format!("; {} biased ({:+.1} SE)", b.component, b.bias_z))
+                    .collect::<String>()
             );
         }
     }

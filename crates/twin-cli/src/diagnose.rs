@@ -19,6 +19,8 @@
 //!                   nis_per_dof {before, after}, prediction_rmse_m [{horizon_s, before, after}]}}]
 //!                 an empty list when the nominal model explains the data
 //! rejected        [{cause, parameters, heldout_nll_gain, reason}]: tried, not reported
+//! unexplained     {nis_per_dof, biased [{component, bias_z}]} when the findings leave
+//!                 the held-out residuals well outside what the filter expects, else null
 //! instrument      {speed_mps, toward_deg, samples} the log's own set and drift
 //!                 (NMEA 2000 PGN 130577), or null
 //! residuals       {steps, mean [6], bias_z [6], rms [6], lag1 [6], nis_per_dof,
@@ -30,7 +32,10 @@
 //! `heading_offset` (`offset_deg`: sensor minus true), `sog_scale` (`scale`:
 //! reported over true), `gnss_latency` (`latency_s`: how much older the GNSS
 //! data are than their stamps), `lever_arm` (`x_m`, `y_m`: antenna forward,
-//! starboard).
+//! starboard), `stw_scale` (`scale`), `sideslip` (`lateral_mps_per_radps`),
+//! and the profile's own parameters on the kinetic base, each a `scale`
+//! over the profile's value: `surge_damping` (the hull's resistance:
+//! fouling), `yaw_damping`, `mass` (mass, inertia and added mass together).
 
 // Measurement components are indexed across parallel arrays.
 #![allow(clippy::needless_range_loop)]
@@ -51,7 +56,7 @@ use twin_wire::{
 };
 
 use crate::svg::{Figure, PALETTE, Style};
-use twin_wire::outputs::FindingJson;
+use twin_wire::outputs::{FindingJson, UnexplainedJson};
 use twin_wire::profile::VesselProfile;
 
 /// Why a log cannot be diagnosed.
@@ -266,6 +271,8 @@ pub struct DiagnoseReport {
     pub findings: Vec<FindingJson>,
     /// Causes tried and not reported.
     pub rejected: Vec<RejectedJson>,
+    /// What the findings leave unexplained, or null.
+    pub unexplained: Option<UnexplainedJson>,
     /// The log's own current estimate, where it has one.
     pub instrument: Option<InstrumentJson>,
     /// The diagnosis itself (for plots; not printed).
@@ -317,6 +324,7 @@ pub fn diagnose_loaded(
                 reason: r.reason.clone(),
             })
             .collect(),
+        unexplained: d.unexplained.as_ref().map(UnexplainedJson::from),
         instrument: log
             .instrument_current
             .map(|([n, e], samples)| InstrumentJson {
@@ -353,6 +361,43 @@ fn value_text(v: &serde_json::Value) -> String {
         serde_json::Value::Number(n) => n.as_f64().map(|x| format!("{x:.3}")).unwrap_or_default(),
         other => other.to_string().trim_matches('"').to_string(),
     }
+}
+
+/// One finding of the human summary.
+fn write_finding(o: &mut String, i: usize, f: &FindingJson) {
+    use std::fmt::Write;
+    let params: Vec<String> = f
+        .parameters
+        .iter()
+        .map(|(k, v)| match f.uncertainty.get(k) {
+            Some(s) => format!("{k} {} +- {s:.3}", value_text(v)),
+            None => format!("{k} {}", value_text(v)),
+        })
+        .collect();
+    let _ = writeln!(
+        o,
+        "  finding {}    {}: {}",
+        i + 1,
+        f.cause,
+        params.join(", ")
+    );
+    for e in &f.evidence {
+        let _ = writeln!(o, "               evidence: {e}");
+    }
+    let g = &f.gain;
+    let rmse: Vec<String> = g
+        .prediction_rmse_m
+        .iter()
+        .map(|h| format!("{:.0} s {:.2} m -> {:.2} m", h.horizon_s, h.before, h.after))
+        .collect();
+    let _ = writeln!(
+        o,
+        "               gain on held-out data: log-likelihood +{:.1}, NIS per dof {:.2} -> {:.2}; position prediction RMSE {}",
+        g.heldout_nll_gain,
+        g.nis_per_dof.before,
+        g.nis_per_dof.after,
+        rmse.join(", ")
+    );
 }
 
 /// The human summary.
@@ -413,37 +458,20 @@ pub fn render_text(r: &DiagnoseReport) -> String {
         );
     }
     for (i, f) in r.findings.iter().enumerate() {
-        let params: Vec<String> = f
-            .parameters
+        write_finding(&mut o, i, f);
+    }
+    if let Some(u) = &r.unexplained {
+        let biased: Vec<String> = u
+            .biased
             .iter()
-            .map(|(k, v)| match f.uncertainty.get(k) {
-                Some(s) => format!("{k} {} +- {s:.3}", value_text(v)),
-                None => format!("{k} {}", value_text(v)),
-            })
+            .map(|b| format!("{} mean at {:.1} standard errors", b.component, b.bias_z))
             .collect();
         let _ = writeln!(
             o,
-            "  finding {}    {}: {}",
-            i + 1,
-            f.cause,
-            params.join(", ")
-        );
-        for e in &f.evidence {
-            let _ = writeln!(o, "               evidence: {e}");
-        }
-        let g = &f.gain;
-        let rmse: Vec<String> = g
-            .prediction_rmse_m
-            .iter()
-            .map(|h| format!("{:.0} s {:.2} m -> {:.2} m", h.horizon_s, h.before, h.after))
-            .collect();
-        let _ = writeln!(
-            o,
-            "               gain on held-out data: log-likelihood +{:.1}, NIS per dof {:.2} -> {:.2}; position prediction RMSE {}",
-            g.heldout_nll_gain,
-            g.nis_per_dof.before,
-            g.nis_per_dof.after,
-            rmse.join(", ")
+            "  UNEXPLAINED  the model is still wrong on held-out data, in a way no cause of the catalogue describes: NIS per dof {:.2}{}{}",
+            u.nis_per_dof,
+            if biased.is_empty() { "" } else { "; " },
+            biased.join(", ")
         );
     }
     if let Some(i) = &r.instrument {

@@ -93,6 +93,23 @@ impl Default for VesselParams {
 }
 
 impl VesselParams {
+    /// These parameters with the scales `[surge damping, yaw damping,
+    /// thrust coefficients, mass]` applied (the mass scale applies to the
+    /// rigid-body mass and inertia and to the added mass alike).
+    pub fn scaled(&self, scales: [f64; 4]) -> Self {
+        let mut p = *self;
+        p.linear_damping[0] *= scales[0];
+        p.linear_damping[2] *= scales[1];
+        p.thrust_coeff_ahead *= scales[2];
+        p.thrust_coeff_astern *= scales[2];
+        p.mass_kg *= scales[3];
+        p.mass_matrix *= scales[3];
+        for a in &mut p.added_mass {
+            *a *= scales[3];
+        }
+        p
+    }
+
     /// Thrust of one propeller at shaft speed `n_radps` (saturated to the
     /// shaft's limits), N: `k n |n|` with the ahead or astern coefficient.
     pub fn thrust_n(&self, n_radps: f64) -> f64 {

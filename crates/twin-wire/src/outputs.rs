@@ -613,6 +613,44 @@ impl From<&twin_core::diagnose::Finding> for FindingJson {
     }
 }
 
+/// What the findings leave unexplained: the extended model's held-out
+/// residuals are still well outside what the filter expects, so the model
+/// is wrong in a way no cause of the catalogue describes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct UnexplainedJson {
+    /// Held-out NIS per degree of freedom with every finding (consistent:
+    /// near 1; unexplained above the bar, 2 by default).
+    pub nis_per_dof: f64,
+    /// The components whose held-out innovation mean is still biased
+    /// beyond the bar (10 standard errors by default).
+    pub biased: Vec<BiasedComponent>,
+}
+
+/// A measurement component whose innovations stay biased.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct BiasedComponent {
+    /// `north`, `east`, `sog`, `cog`, `heading`, `stw` or `yaw_rate`.
+    pub component: String,
+    /// The innovation mean in standard errors of the mean.
+    pub bias_z: f64,
+}
+
+impl From<&twin_core::diagnose::Unexplained> for UnexplainedJson {
+    fn from(u: &twin_core::diagnose::Unexplained) -> Self {
+        Self {
+            nis_per_dof: u.nis_per_dof,
+            biased: u
+                .biased
+                .iter()
+                .map(|(component, bias_z)| BiasedComponent {
+                    component: component.to_string(),
+                    bias_z: *bias_z,
+                })
+                .collect(),
+        }
+    }
+}
+
 /// `twin/finding`: what the daemon's residual monitor concluded about a
 /// vessel's recent data, published when it changes (an empty list when the
 /// nominal model explains the data again).
@@ -633,12 +671,17 @@ pub struct FindingsMessage {
     pub trigger: String,
     /// The findings; empty when the nominal model explains the data.
     pub findings: Vec<FindingJson>,
+    /// Set when the findings leave the data unexplained (the model is wrong
+    /// in a way the catalogue has no cause for); absent or null otherwise.
+    #[serde(default)]
+    pub unexplained: Option<UnexplainedJson>,
     /// True when the inputs were replayed from a log.
     pub replay: bool,
 }
 
 impl FindingsMessage {
-    /// The causes named, sorted (to tell whether a new diagnosis changed anything).
+    /// The causes named, sorted, and `unexplained` when the verdict is (to
+    /// tell whether a new diagnosis changed anything).
     pub fn causes(&self) -> Vec<String> {
         let mut v: Vec<String> = self
             .findings
@@ -650,6 +693,9 @@ impl FindingsMessage {
                 },
             )
             .collect();
+        if self.unexplained.is_some() {
+            v.push("unexplained".to_string());
+        }
         v.sort();
         v
     }

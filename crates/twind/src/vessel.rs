@@ -41,7 +41,7 @@ use twin_wire::measurement::ThrustCommand;
 use twin_wire::messages::{ActuatorCommand, decode_actuators_limited, decode_gnss_limited};
 use twin_wire::outputs::{
     AlarmMessage, FaultMessage, FindingJson, FindingsMessage, StateMessage, StatsMessage,
-    payload_time,
+    UnexplainedJson, payload_time,
 };
 use twin_wire::profile::VesselProfile;
 use twin_wire::read::{NmeaDecoder, ReadOptions};
@@ -268,6 +268,7 @@ fn diagnose_events(
         nominal_nis_per_dof: d.nominal.nis_per_dof,
         trigger: trigger.name().to_string(),
         findings: d.findings.iter().map(FindingJson::from).collect(),
+        unexplained: d.unexplained.as_ref().map(UnexplainedJson::from),
         replay,
     })
 }

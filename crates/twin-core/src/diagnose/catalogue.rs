@@ -10,6 +10,7 @@ use super::fit::{Acceptance, BaseModel, Hypothesis};
 use super::pass::AtSplit;
 use crate::estimator::Term;
 use crate::geodesy::rad_to_compass_deg;
+use crate::vessel::VesselParams;
 
 /// A candidate cause of what the nominal model gets wrong.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -31,11 +32,19 @@ pub enum Cause {
     /// The hull slides sideways in turns, in proportion to the turn rate
     /// (kinematic base only; the Otter's twin models its sway).
     Sideslip,
+    /// The hull's resistance in surge differs from the profile's (fouling,
+    /// a load, a different hull): the surge damping rescaled.
+    SurgeDamping,
+    /// The hull's resistance to turning differs from the profile's.
+    YawDamping,
+    /// The vessel is heavier or lighter than the profile (a payload,
+    /// ballast): mass, inertia and added mass rescaled together.
+    Mass,
 }
 
 impl Cause {
     /// Every cause, in the order they are tried.
-    pub const ALL: [Cause; 8] = [
+    pub const ALL: [Cause; 11] = [
         Cause::Current,
         Cause::ThrusterLoss,
         Cause::HeadingOffset,
@@ -44,6 +53,9 @@ impl Cause {
         Cause::LeverArm,
         Cause::StwScale,
         Cause::Sideslip,
+        Cause::SurgeDamping,
+        Cause::YawDamping,
+        Cause::Mass,
     ];
 
     /// The cause's declaration in the catalogue.
@@ -57,12 +69,24 @@ impl Cause {
             Cause::LeverArm => &LEVER_ARM,
             Cause::StwScale => &STW_SCALE,
             Cause::Sideslip => &SIDESLIP,
+            Cause::SurgeDamping => &SURGE_DAMPING,
+            Cause::YawDamping => &YAW_DAMPING,
+            Cause::Mass => &MASS,
         }
     }
 
     /// The name used in reports and in `twin diagnose --json`.
     pub fn name(self) -> &'static str {
         self.spec().name
+    }
+
+    /// How many parameters it fits: of two causes that explain the data
+    /// equally well, the one with fewer is named.
+    pub(super) fn parameter_count(self) -> usize {
+        match self.spec().search {
+            Search::Scalar(_) => 1,
+            Search::States(_) | Search::Plane(_) => 2,
+        }
     }
 
     /// Whether the cause can be tried on a log of this kind.
@@ -117,8 +141,13 @@ pub(super) struct StateReport {
 pub(super) struct StateSearch {
     /// Frees the cause's states in a hypothesis.
     pub free: fn(&mut Hypothesis),
+    /// Takes them out of it.
+    pub off: fn(&mut Hypothesis),
     /// Its report from the estimates at the split.
     pub report: fn(&AtSplit, &Acceptance) -> StateReport,
+    /// What estimates outside the cause's physical bounds are evidence of
+    /// (`None` when they are within them).
+    pub beyond: fn(&AtSplit) -> Option<&'static str>,
 }
 
 /// A one-parameter cause.
@@ -147,8 +176,9 @@ pub(super) struct ScalarSearch {
 pub(super) struct PlaneSearch {
     /// The parameters' names in reports.
     pub parameters: [&'static str; 2],
-    /// Each offset's bounds, m.
-    pub bounds: (f64, f64),
+    /// Each offset's bound either side of the reference point, m, from the
+    /// vessel's profile: the antenna is on the hull.
+    pub half_width_m: fn(&VesselParams) -> f64,
     /// Grid points per offset.
     pub grid: usize,
     /// The smallest offset worth reporting, m.
@@ -227,12 +257,33 @@ fn loss_report(s: &AtSplit, acc: &Acceptance) -> StateReport {
 pub(super) const NEGATIVE_LATENCY: &str = "it wants a negative latency, which no receiver has: the fixes lead the model, \
      a difference in the vessel's dynamics (a time constant, damping, mass), not a clock";
 
+/// The fastest current the catalogue names, m/s: tidal races reach a few
+/// m/s; the waters a small USV works in, less.
+pub(super) const MAX_CURRENT_MPS: f64 = 3.0;
+
+/// Why a current beyond [`MAX_CURRENT_MPS`] is not a current.
+pub(super) const TOO_FAST_CURRENT: &str = "it wants a current faster than 3 m/s, beyond the waters a small vessel works in:      the current state is absorbing a difference in the vessel's dynamics";
+
+/// A loss below this (more thrust than the profile gives) is not a loss.
+pub(super) const MIN_LOSS: f64 = -0.1;
+
+/// Why a negative loss is not a loss.
+pub(super) const NEGATIVE_LOSS: &str = "it wants a propeller giving more thrust than the profile says (a negative loss):      the profile's thrust, damping or mass, not a fault";
+
+/// Why an antenna beyond the hull is not a lever arm.
+pub(super) const OUTSIDE_HULL: &str =
+    "it wants an antenna outside the hull: the lever arm is absorbing something else";
+
 static CURRENT: CauseSpec = CauseSpec {
     name: "current",
     applies: always,
     search: Search::States(StateSearch {
         free: free_current,
+        off: |h| h.current = Term::Off,
         report: current_report,
+        beyond: |s| {
+            (s.current[0].hypot(s.current[1]) > MAX_CURRENT_MPS).then_some(TOO_FAST_CURRENT)
+        },
     }),
 };
 
@@ -241,7 +292,9 @@ static THRUSTER_LOSS: CauseSpec = CauseSpec {
     applies: |log| log.base == BaseModel::Kinetic,
     search: Search::States(StateSearch {
         free: free_losses,
+        off: |h| h.loss = Term::Off,
         report: loss_report,
+        beyond: |s| (s.loss[0].min(s.loss[1]) < MIN_LOSS).then_some(NEGATIVE_LOSS),
     }),
 };
 
@@ -298,7 +351,9 @@ static LEVER_ARM: CauseSpec = CauseSpec {
     applies: |log| log.base == BaseModel::Kinetic || log.has_heading,
     search: Search::Plane(PlaneSearch {
         parameters: ["x_m", "y_m"],
-        bounds: (-10.0, 10.0),
+        // Three quarters of the hull's length: a mast at the bow or the
+        // stern, from a reference point anywhere on the hull.
+        half_width_m: |p| 0.75 * p.length_m,
         grid: 8,
         practical: |acc| acc.min_lever_arm_m,
     }),
@@ -333,6 +388,42 @@ static SIDESLIP: CauseSpec = CauseSpec {
         below_means: None,
     }),
 };
+
+/// A model-parameter cause: one of the profile's parameters in
+/// [`Hypothesis::profile_scales`] rescaled, on the kinetic base. Searched
+/// from 0.4 to 2.5 times the profile's: beyond, the profile is not of this
+/// vessel at all (`twin identify` is the tool).
+///
+/// The thrust coefficients are not a cause: positions and shaft speeds say
+/// how the vessel accelerates and turns for a shaft speed, never how many
+/// newtons that takes, so a thrust scale is the same motion as the mass and
+/// the damping scaled the other way together (and, on one side, as a
+/// propeller loss). The profile's thrust is the baseline, as in
+/// `twin identify`.
+const fn profile_scale(name: &'static str, set: fn(&mut Hypothesis, f64)) -> CauseSpec {
+    CauseSpec {
+        name,
+        applies: kinetic_only,
+        search: Search::Scalar(ScalarSearch {
+            parameter: "scale",
+            bounds: (0.4, 2.5),
+            grid: 8,
+            neutral: 1.0,
+            set,
+            shown: identity,
+            practical: |acc| acc.min_profile_scale_error,
+            below_means: None,
+        }),
+    }
+}
+
+fn kinetic_only(log: &LogKind) -> bool {
+    log.base == BaseModel::Kinetic
+}
+
+static SURGE_DAMPING: CauseSpec = profile_scale("surge_damping", |h, v| h.profile_scales[0] = v);
+static YAW_DAMPING: CauseSpec = profile_scale("yaw_damping", |h, v| h.profile_scales[1] = v);
+static MASS: CauseSpec = profile_scale("mass", |h, v| h.profile_scales[3] = v);
 
 #[cfg(test)]
 mod tests {
@@ -425,7 +516,55 @@ mod tests {
                 applies(Cause::LeverArm),
                 kind.base == BaseModel::Kinetic || kind.has_heading
             );
+            for c in [Cause::SurgeDamping, Cause::YawDamping, Cause::Mass] {
+                assert_eq!(applies(c), kind.base == BaseModel::Kinetic, "{c:?}");
+            }
         }
+    }
+
+    /// Each model-parameter cause rescales its own parameter of the
+    /// profile and no other.
+    #[test]
+    fn each_model_parameter_cause_sets_its_own_scale() {
+        let causes = [Cause::SurgeDamping, Cause::YawDamping, Cause::Mass];
+        for (c, i) in causes.into_iter().zip([0, 1, 3]) {
+            let Search::Scalar(s) = &c.spec().search else {
+                panic!("{c:?} is one scalar");
+            };
+            let mut h = Hypothesis::nominal();
+            (s.set)(&mut h, 1.3);
+            let mut want = [1.0; 4];
+            want[i] = 1.3;
+            assert_eq!(h.profile_scales, want, "{c:?}");
+        }
+    }
+
+    /// A state estimate outside its cause's physical bounds is refused with
+    /// what it is evidence of.
+    #[test]
+    fn state_estimates_beyond_their_bounds_are_refused() {
+        let beyond = |c: Cause, s: &AtSplit| match &c.spec().search {
+            Search::States(st) => (st.beyond)(s),
+            _ => panic!("{c:?} is a state cause"),
+        };
+        let mut s = AtSplit::default();
+        assert_eq!(beyond(Cause::Current, &s), None);
+        assert_eq!(beyond(Cause::ThrusterLoss, &s), None);
+        s.current = [2.5, 2.0];
+        assert_eq!(beyond(Cause::Current, &s), Some(TOO_FAST_CURRENT));
+        s.loss = [0.9, -0.05];
+        assert_eq!(beyond(Cause::ThrusterLoss, &s), None);
+        s.loss = [0.2, -0.2];
+        assert_eq!(beyond(Cause::ThrusterLoss, &s), Some(NEGATIVE_LOSS));
+    }
+
+    #[test]
+    fn the_antenna_is_searched_on_the_hull() {
+        let Search::Plane(p) = &Cause::LeverArm.spec().search else {
+            panic!("the lever arm is a plane");
+        };
+        let otter = VesselParams::default();
+        assert_eq!((p.half_width_m)(&otter), 0.75 * otter.length_m);
     }
 
     #[test]

@@ -4,7 +4,9 @@
 //! written per cause: each search kind of the catalogue has one fitting
 //! function.
 
-use super::catalogue::{Cause, LogKind, PlaneSearch, ScalarSearch, Search, StateSearch};
+use super::catalogue::{
+    Cause, LogKind, OUTSIDE_HULL, PlaneSearch, ScalarSearch, Search, StateSearch,
+};
 use super::pass::{AtSplit, PassOptions, PassOut, kinetic_pass, water_pass};
 use super::prepare::Prepared;
 use super::residuals::{InnovationRecord, ResidualSummary, summarise};
@@ -35,6 +37,14 @@ pub struct Acceptance {
     pub min_stw_scale_error: f64,
     /// Smallest sideslip worth reporting, m/s per rad/s.
     pub min_sideslip_m: f64,
+    /// Smallest error of a profile's parameter worth reporting (|scale - 1|).
+    pub min_profile_scale_error: f64,
+    /// Held-out NIS per degree of freedom above which, after the findings,
+    /// the data are called unexplained.
+    pub max_explained_nis_per_dof: f64,
+    /// A held-out innovation mean further than this many standard errors
+    /// from zero, after the findings, is called unexplained too.
+    pub max_explained_bias_z: f64,
 }
 
 impl Default for Acceptance {
@@ -42,7 +52,13 @@ impl Default for Acceptance {
     /// which a user would act: 5 cm/s of current, 3 % of thrust, 1 deg of
     /// heading, 1 % of speed, 0.1 s of latency, 30 cm of antenna offset, 2 %
     /// of a log's speed (paddle wheels are rarely better calibrated), and a
-    /// sideslip of 0.5 m/s per rad/s (a degree of drift in an ordinary turn).
+    /// sideslip of 0.5 m/s per rad/s (a degree of drift in an ordinary turn),
+    /// 10 % of a profile's parameter. The data are unexplained when the
+    /// innovations after the findings are twice as large as the filter
+    /// expects (NIS per degree of freedom above 2) or a component's mean is
+    /// more than 10 standard errors from zero (the standard errors assume
+    /// white innovations; a filter under mismatch has correlated ones, so
+    /// 3 would flag every imperfect model).
     fn default() -> Self {
         Self {
             min_gain_nll: 10.0,
@@ -55,6 +71,9 @@ impl Default for Acceptance {
             min_lever_arm_m: 0.3,
             min_stw_scale_error: 0.02,
             min_sideslip_m: 0.5,
+            min_profile_scale_error: 0.1,
+            max_explained_nis_per_dof: 2.0,
+            max_explained_bias_z: 10.0,
         }
     }
 }
@@ -153,6 +172,34 @@ pub struct Rejected {
     pub reason: String,
 }
 
+/// The held-out residuals the findings do not explain: the model is still
+/// wrong in a way the catalogue has no cause for.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Unexplained {
+    /// Held-out NIS per degree of freedom with every finding.
+    pub nis_per_dof: f64,
+    /// The components whose held-out innovation mean is beyond the bar,
+    /// with its distance from zero in standard errors.
+    pub biased: Vec<(&'static str, f64)>,
+}
+
+/// The verdict on the extended model's held-out residuals.
+fn unexplained(extended: &ResidualSummary, acc: &Acceptance) -> Option<Unexplained> {
+    use super::residuals::COMPONENTS;
+    let biased: Vec<(&'static str, f64)> = COMPONENTS
+        .iter()
+        .zip(extended.bias_z.iter().zip(&extended.measured))
+        .filter(|(_, (z, measured))| **measured && z.abs() > acc.max_explained_bias_z)
+        .map(|(name, (z, _))| (*name, *z))
+        .collect();
+    (extended.nis_per_dof > acc.max_explained_nis_per_dof || !biased.is_empty()).then_some(
+        Unexplained {
+            nis_per_dof: extended.nis_per_dof,
+            biased,
+        },
+    )
+}
+
 /// Which model the diagnosis is built on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BaseModel {
@@ -177,8 +224,12 @@ pub struct Diagnosis {
     pub extended: ResidualSummary,
     /// The findings, in the order they were accepted.
     pub findings: Vec<Finding>,
-    /// The causes tried in the last round and not reported.
+    /// The causes tried in the last round and not reported, and the
+    /// findings dropped when judged again with all the others.
     pub rejected: Vec<Rejected>,
+    /// What the findings leave unexplained, when the extended model's
+    /// held-out residuals are still well outside what the filter expects.
+    pub unexplained: Option<Unexplained>,
     /// The nominal model's innovations over the held-out part (for plots).
     pub nominal_records: Vec<InnovationRecord>,
     /// The extended model's innovations over the held-out part.
@@ -195,6 +246,9 @@ pub(super) struct Hypothesis {
     pub effects: SensorEffects,
     pub stw_scale: f64,
     pub sideslip_m: f64,
+    /// The profile's `[surge damping, yaw damping, thrust coefficients,
+    /// mass]` over the profile's own (kinetic base only).
+    pub profile_scales: [f64; 4],
 }
 
 impl Hypothesis {
@@ -205,6 +259,7 @@ impl Hypothesis {
             effects: SensorEffects::default(),
             stw_scale: 1.0,
             sideslip_m: 0.0,
+            profile_scales: [1.0; 4],
         }
     }
 }
@@ -380,7 +435,7 @@ fn fit_states(
         z: r.z,
         practical: r.practical,
         at_edge: false,
-        beyond_physics: None,
+        beyond_physics: (search.beyond)(&s),
         states: Some(s),
     })
 }
@@ -420,7 +475,8 @@ fn fit_plane(ctx: &Ctx<'_>, train: Hypothesis, cause: Cause, search: &PlaneSearc
         h.effects.antenna_m = [x, y];
         h
     };
-    let (lo, hi) = search.bounds;
+    let half_width_m = (search.half_width_m)(&ctx.config.twin.kinetic.params);
+    let (lo, hi) = (-half_width_m, half_width_m);
     let y0 = train.effects.antenna_m[1];
     let (x, sx) = minimise_1d(&|v| ctx.train_nll(&with(v, y0)), lo, hi, search.grid);
     let (y, sy) = minimise_1d(&|v| ctx.train_nll(&with(x, v)), lo, hi, search.grid);
@@ -428,6 +484,7 @@ fn fit_plane(ctx: &Ctx<'_>, train: Hypothesis, cause: Cause, search: &PlaneSearc
     let out = ctx.pass(&h, true, false);
     h.fix_states(&out.at_split);
     let size = x.hypot(y);
+    let on_edge = near_edge(x, lo, hi) || near_edge(y, lo, hi);
     let sd = if size > 1e-9 {
         ((x * sx).powi(2) + (y * sy).powi(2)).sqrt() / size
     } else {
@@ -441,8 +498,8 @@ fn fit_plane(ctx: &Ctx<'_>, train: Hypothesis, cause: Cause, search: &PlaneSearc
         size,
         z: size / sd.max(1e-12),
         practical: (search.practical)(&ctx.config.acceptance),
-        at_edge: near_edge(x, lo, hi) || near_edge(y, lo, hi),
-        beyond_physics: None,
+        at_edge: on_edge,
+        beyond_physics: on_edge.then_some(OUTSIDE_HULL),
         states: Some(out.at_split),
     }
 }
@@ -573,27 +630,51 @@ struct Round {
     rejected: Vec<Rejected>,
 }
 
-/// Takes, of the scored candidates, the one with the largest held-out gain
-/// that clears every bar; the others are rejected with the bar they missed.
+/// Takes, of the scored candidates that clear every bar, the one with the
+/// largest held-out gain, unless another explains the data as well (a gain
+/// within `min_gain_nll` of it) with fewer parameters: the simpler
+/// explanation is named. The others are rejected with the bar they missed.
 fn choose(mut scored: Vec<(Fitted, PassOut)>, current_nll_test: f64, acc: &Acceptance) -> Round {
     scored.sort_by(|a, b| {
         (current_nll_test - b.1.nll_test).total_cmp(&(current_nll_test - a.1.nll_test))
     });
+    let judged: Vec<(f64, Option<String>)> = scored
+        .iter()
+        .map(|(f, out)| {
+            let gain = current_nll_test - out.nll_test;
+            (gain, missed_bar(f, gain, acc))
+        })
+        .collect();
+    let clearing = || (0..scored.len()).filter(|i| judged[*i].1.is_none());
+    let taken = clearing().next().map(|best| {
+        clearing()
+            .filter(|i| judged[*i].0 >= judged[best].0 - acc.min_gain_nll)
+            .min_by_key(|i| (scored[*i].0.cause.parameter_count(), *i))
+            .unwrap_or(best)
+    });
+    let taken_by = taken.map(|i| (scored[i].0.cause.name(), judged[i].0));
     let mut round = Round {
         took: None,
         rejected: Vec::new(),
     };
-    for (f, out) in scored {
-        let gain = current_nll_test - out.nll_test;
-        match (missed_bar(&f, gain, acc), round.took.is_none()) {
-            (None, true) => round.took = Some((f, out, gain)),
-            (reason, _) => round.rejected.push(Rejected {
-                cause: f.cause,
-                parameters: f.parameters.clone(),
-                heldout_nll_gain: gain,
-                reason: reason.unwrap_or_else(|| "a larger gain was taken this round".to_string()),
-            }),
+    for (i, ((f, out), (gain, reason))) in scored.into_iter().zip(judged).enumerate() {
+        if Some(i) == taken {
+            round.took = Some((f, out, gain));
+            continue;
         }
+        let reason = reason.unwrap_or_else(|| match taken_by {
+            Some((name, taken_gain)) if gain > taken_gain => format!(
+                "{name} explains the data as well (a held-out gain within {}) with fewer parameters",
+                acc.min_gain_nll
+            ),
+            _ => "a larger gain was taken this round".to_string(),
+        });
+        round.rejected.push(Rejected {
+            cause: f.cause,
+            parameters: f.parameters.clone(),
+            heldout_nll_gain: gain,
+            reason,
+        });
     }
     round
 }
@@ -627,6 +708,62 @@ fn refresh_state_findings(earlier: &mut [Finding], states: &AtSplit, acc: &Accep
             f.parameters = r.parameters;
             f.side = r.side;
         }
+    }
+}
+
+/// `h` without `cause`: its states off, its parameter at "no effect".
+fn without(h: &Hypothesis, cause: Cause) -> Hypothesis {
+    let mut h = *h;
+    match &cause.spec().search {
+        Search::States(s) => (s.off)(&mut h),
+        Search::Scalar(s) => (s.set)(&mut h, s.neutral),
+        Search::Plane(_) => h.effects.antenna_m = [0.0, 0.0],
+    }
+    h
+}
+
+/// The accepted model and its held-out pass.
+struct Accepted {
+    hypothesis: Hypothesis,
+    out: PassOut,
+}
+
+/// After the greedy pass, each finding is judged again against the model
+/// with all the others: the one that gains least, if below the bar, is
+/// dropped (a later finding explains what it did), and the rest judged
+/// again.
+fn drop_redundant(
+    ctx: &Ctx<'_>,
+    model: &mut Accepted,
+    findings: &mut Vec<Finding>,
+    rejected: &mut Vec<Rejected>,
+) {
+    let acc = &ctx.config.acceptance;
+    while findings.len() > 1 {
+        let mut weakest: Option<(usize, f64, PassOut)> = None;
+        for (i, f) in findings.iter().enumerate() {
+            let out = ctx.pass(&without(&model.hypothesis, f.cause), false, true);
+            let gain = out.nll_test - model.out.nll_test;
+            if !out.failed && gain < acc.min_gain_nll && weakest.as_ref().is_none_or(|w| gain < w.1)
+            {
+                weakest = Some((i, gain, out));
+            }
+        }
+        let Some((i, gain, out)) = weakest else {
+            break;
+        };
+        let f = findings.remove(i);
+        rejected.push(Rejected {
+            cause: f.cause,
+            parameters: f.parameters,
+            heldout_nll_gain: gain,
+            reason: format!(
+                "with the other findings it gains {gain:.1} on held-out data (< {}): they explain what it did",
+                acc.min_gain_nll
+            ),
+        });
+        model.hypothesis = without(&model.hypothesis, f.cause);
+        model.out = out;
     }
 }
 
@@ -687,8 +824,15 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
         accepted = f.hypothesis;
         current_out = out;
     }
+    let mut model = Accepted {
+        hypothesis: accepted,
+        out: current_out,
+    };
+    drop_redundant(&ctx, &mut model, &mut findings, &mut rejected);
+    let current_out = model.out;
     let extended = summarise(&current_out.records);
     Diagnosis {
+        unexplained: unexplained(&extended, acc),
         base,
         steps: n,
         training_steps: split,
@@ -810,5 +954,42 @@ mod tests {
         assert!(reasons[2].1.contains("standard deviations"));
         assert_eq!(reasons[3].1, "a larger gain was taken this round");
         assert!(reasons[4].1.starts_with("held-out log-likelihood gain 5.0"));
+    }
+
+    /// Of two causes that explain the data as well (held-out gains within
+    /// the bar of each other), the one with fewer parameters is named; a
+    /// clearly larger gain still wins.
+    #[test]
+    fn the_simpler_of_two_equal_explanations_is_named() {
+        let acc = Acceptance::default();
+        let round = choose(
+            vec![
+                scored(fitted(Cause::ThrusterLoss, 0.3, 8.0), 900.0),
+                scored(fitted(Cause::SurgeDamping, 0.3, 8.0), 905.0),
+            ],
+            1000.0,
+            &acc,
+        );
+        assert_eq!(round.took.expect("taken").0.cause, Cause::SurgeDamping);
+        assert!(
+            round.rejected[0]
+                .reason
+                .starts_with("surge_damping explains the data as well"),
+            "{}",
+            round.rejected[0].reason
+        );
+        let round = choose(
+            vec![
+                scored(fitted(Cause::ThrusterLoss, 0.3, 8.0), 900.0),
+                scored(fitted(Cause::SurgeDamping, 0.3, 8.0), 920.0),
+            ],
+            1000.0,
+            &acc,
+        );
+        assert_eq!(round.took.expect("taken").0.cause, Cause::ThrusterLoss);
+        assert_eq!(
+            round.rejected[0].reason,
+            "a larger gain was taken this round"
+        );
     }
 }

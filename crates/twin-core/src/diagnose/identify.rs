@@ -132,22 +132,6 @@ const UNIDENTIFIED_SIGMA: f64 = 0.25;
 /// likelihood's curvature knows nothing of what the model itself lacks).
 const MIN_IDENTIFIED_SIGMA: f64 = 0.05;
 
-/// `params` with each of the scales `[surge damping, yaw damping, thrust,
-/// mass]` applied.
-fn scaled(params: &VesselParams, scales: [f64; 4]) -> VesselParams {
-    let mut p = *params;
-    p.linear_damping[0] *= scales[0];
-    p.linear_damping[2] *= scales[1];
-    p.thrust_coeff_ahead *= scales[THRUST];
-    p.thrust_coeff_astern *= scales[THRUST];
-    p.mass_kg *= scales[3];
-    p.mass_matrix *= scales[3];
-    for a in &mut p.added_mass {
-        *a *= scales[3];
-    }
-    p
-}
-
 /// The searched parameters' indices in [`IDENTIFIED_PARAMETERS`].
 const SEARCHED: [usize; 3] = [0, 1, 3];
 
@@ -292,7 +276,7 @@ pub fn identify(
         for (slot, k) in SEARCHED.iter().enumerate() {
             scales[*k] = log_scales[slot].exp();
         }
-        scaled(start, scales)
+        start.scaled(scales)
     };
     let nll =
         |log_scales: [f64; 3]| training_nll(prep, &config.diagnose, params_of(log_scales), split);
@@ -346,7 +330,7 @@ pub fn identify(
             1.0
         }
     });
-    let params = scaled(start, kept);
+    let params = start.scaled(kept);
     let profile_sigma = std::array::from_fn(|k| match estimates[k] {
         e if e.held => MIN_IDENTIFIED_SIGMA,
         e if e.identified => e.sigma.max(MIN_IDENTIFIED_SIGMA),

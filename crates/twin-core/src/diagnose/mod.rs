@@ -14,25 +14,38 @@
 //!    errors at several horizons, and the correlation of the innovations
 //!    with candidate signatures (heading, speed, turn rate, acceleration,
 //!    time).
-//! 4. **Catalogue of causes** ([`Cause`]): the water current (two states),
-//!    a loss per propeller (where propeller data exist), a heading-sensor
-//!    offset, a scale error of the reported SOG, GNSS latency and the GNSS
-//!    antenna's lever arm. Each is fitted on the first part of the log
-//!    (states: estimated by the filter; sensor effects: maximum likelihood
-//!    over the filter's one-step-ahead predictions), then held fixed and
-//!    judged on the held-out rest against the model without it.
+//! 4. **Catalogue of causes** ([`Cause`], declared as data in
+//!    `catalogue`): the water current (two states), a loss per propeller
+//!    (where propeller data exist), a heading-sensor offset, a scale error
+//!    of the reported SOG or of the speed through water, GNSS latency, the
+//!    GNSS antenna's lever arm, a sideslip in turns (kinematic base), and
+//!    the vessel's own dynamics on the kinetic base: its surge damping, yaw
+//!    damping and mass over the profile's. Each is fitted on the first part
+//!    of the log (states: estimated by the filter; parameters: maximum
+//!    likelihood over the filter's one-step-ahead predictions, within the
+//!    cause's physical bounds), then held fixed and judged on the held-out
+//!    rest against the model without it. A fit that wants to leave its
+//!    physical bounds (a negative latency, an antenna off the hull, a
+//!    negative loss, a current of several m/s) is evidence of something
+//!    else and is rejected with what it means.
 //! 5. **Selection.** Greedy: the cause with the largest held-out gain is
 //!    accepted if it clears three bars fixed in advance ([`Acceptance`]): the
 //!    held-out log-likelihood gains at least `min_gain_nll` (a likelihood
 //!    ratio of e^10 by default; a parameter that only fits noise loses
 //!    held-out likelihood), the fitted size is at least `min_z` standard
 //!    deviations from none, and at least the practical size a user would
-//!    act on. Then the others are tried again on top of it, until none
-//!    clears the bars: combined effects are found one after the other.
+//!    act on; of two causes whose gains are within `min_gain_nll` of each
+//!    other, the one with fewer parameters. Then the others are tried again
+//!    on top of it, until none clears the bars: combined effects are found
+//!    one after the other. Last, each finding is judged again against the
+//!    model with all the others, and one that no longer gains
+//!    `min_gain_nll` is dropped.
 //! 6. **Report** ([`Diagnosis`]): per finding the cause, its parameters
 //!    with uncertainty, the evidence in the nominal residuals, and the gain
 //!    on held-out data (log-likelihood, NIS per degree of freedom, position
-//!    prediction RMSE at each horizon, before and after).
+//!    prediction RMSE at each horizon, before and after); and
+//!    [`Unexplained`] when the findings leave the held-out residuals well
+//!    outside what the filter expects.
 //!
 //! 7. **Live** ([`LiveMonitor`]): the daemon keeps the recent past per
 //!    vessel and diagnoses it on an interval, or earlier when the live twin's
@@ -58,7 +71,8 @@ mod residuals;
 
 pub use catalogue::Cause;
 pub use fit::{
-    Acceptance, BaseModel, DiagnoseConfig, Diagnosis, Finding, Gain, Rejected, diagnose,
+    Acceptance, BaseModel, DiagnoseConfig, Diagnosis, Finding, Gain, Rejected, Unexplained,
+    diagnose,
 };
 pub use identify::{
     HeldOut, IDENTIFIED_PARAMETERS, Identification, IdentifyConfig, ParameterEstimate, identify,

@@ -13,7 +13,8 @@ use super::prepare::{Prepared, Step};
 use super::residuals::{COMPONENT_COUNT, InnovationRecord};
 use crate::aekf::{AekfError, AekfState, StepReport};
 use crate::estimator::{
-    CourseGate, KineticBase, KineticOptions, KineticState, LocalFix, Term, WaterBase, WaterOptions,
+    CourseGate, KineticBase, KineticConfig, KineticOptions, KineticState, LocalFix, Term,
+    WaterBase, WaterOptions,
 };
 use crate::linalg::cholesky;
 use crate::model::Model;
@@ -230,7 +231,12 @@ pub(super) fn kinetic_pass(prep: &Prepared, hyp: &Hypothesis, opts: PassOptions<
         heading_bias: Term::Off,
         profile_errors: Term::Off,
     };
-    match KineticBase::new(&config.kinetic, gate(opts.config), options) {
+    // Scales of 1 leave every parameter as it is, bit for bit.
+    let kinetic = KineticConfig {
+        params: config.kinetic.params.scaled(hyp.profile_scales),
+        ..config.kinetic
+    };
+    match KineticBase::new(&kinetic, gate(opts.config), options) {
         Ok(base) => drive(&Kinetic(base), prep, opts),
         Err(_) => PassOut::failed(),
     }
