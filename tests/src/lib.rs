@@ -142,6 +142,27 @@ pub mod wire {
             .collect()
     }
 
+    /// [`messages`] with the heading (and yaw rate) samples joined to the
+    /// fixes as a logger joins them (`twin simulate`'s logs carry the
+    /// same).
+    pub fn messages_as_logged(run: &SimRun) -> Messages {
+        let mut fixes = twin_cli::simulate::fixes_as_logged(run).into_iter();
+        run.events
+            .iter()
+            .filter_map(|e| match e {
+                SensorEvent::Gnss(_) => {
+                    let f = fixes.next()?;
+                    Some(("gnss", encode_gnss(&f, true).expect("encodable fix")))
+                }
+                SensorEvent::PropellerMeasured(p) => Some((
+                    "actuators",
+                    encode_actuators(&ActuatorCommand::Speeds(*p), true).expect("encodable speeds"),
+                )),
+                _ => None,
+            })
+            .collect()
+    }
+
     /// The offline path over the same payloads: decode and feed a twin, as
     /// `twin analyze` does.
     pub fn offline(msgs: &[(&'static str, Vec<u8>)]) -> VesselTwin {

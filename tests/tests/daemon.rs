@@ -10,8 +10,8 @@ use std::time::Duration;
 use twin_core::diagnose::MonitorConfig;
 use twin_tests::daemon::{drain, last_fault, outputs, rig, rig_observed, states, wait_matching};
 use twin_tests::wire::{
-    Messages, messages, offline, receive_until, receive_until_fault, scenario as scenario_file,
-    simulate as scenario,
+    Messages, messages, messages_as_logged, offline, receive_until, receive_until_fault,
+    scenario as scenario_file, simulate as scenario,
 };
 use twin_wire::outputs::{
     FaultMessage, FindingsMessage, PredictionMessage, StateMessage, ThrusterStatusName,
@@ -455,7 +455,9 @@ async fn bad_inputs_are_refused_with_their_reasons_and_change_nothing() {
 
 /// The live residual monitor: a trial with a hidden water current and port
 /// propeller loss gives a `twin/finding` naming both, with their sizes; the
-/// same trial without them gives a finding message with no finding.
+/// same trial without them gives a finding message with no finding, and
+/// explained; with a current that turns (no cause of the catalogue), the
+/// message says `unexplained`, with its figures.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_live_monitor_names_a_hidden_current_and_loss_and_nothing_on_a_clean_trial() {
     let mut hidden = scenario_file("demo_broken-port");
@@ -465,6 +467,17 @@ async fn the_live_monitor_names_a_hidden_current_and_loss_and_nothing_on_a_clean
     clean.propellers.port.loss = 0.0;
     let hidden_msgs = messages(&twin_sim::simulate(&hidden).unwrap());
     let clean_msgs = messages(&twin_sim::simulate(&clean).unwrap());
+    // The hidden-effect tests' base trial (S-turns, a heading sensor), with
+    // a current turning through 450 deg over five minutes.
+    let mut turning = scenario_file("diagnose_base");
+    turning.current = Some(twin_sim::CurrentSpec {
+        speed_mps: 0.3,
+        toward_deg: 0.0,
+        rotation_deg_s: 1.5,
+        speed_amplitude_mps: 0.0,
+        speed_period_s: 600.0,
+    });
+    let turning_msgs = messages_as_logged(&twin_sim::simulate(&turning).unwrap());
     let mut settings = Settings::default();
     // One diagnosis per vessel, of 280 s, when 280 s are held (the early
     // trigger off, so that the test knows when it runs).
@@ -478,17 +491,22 @@ async fn the_live_monitor_names_a_hidden_current_and_loss_and_nothing_on_a_clean
     let rig = rig(settings).await;
     let sub_hidden = rig.collect("hidden").await;
     let sub_clean = rig.collect("clean").await;
+    let sub_turning = rig.collect("turning").await;
     rig.publish("hidden", &hidden_msgs).await;
     rig.publish("clean", &clean_msgs).await;
+    rig.publish("turning", &turning_msgs).await;
     let findings = |samples: &[zenoh::sample::Sample]| -> Vec<FindingsMessage> {
         outputs(samples, "/twin/finding")
     };
-    let (mut got_hidden, mut got_clean) = (Vec::new(), Vec::new());
-    let deadline = std::time::Instant::now() + Duration::from_secs(120);
-    while (got_hidden.is_empty() || got_clean.is_empty()) && std::time::Instant::now() < deadline {
+    let (mut got_hidden, mut got_clean, mut got_turning) = (Vec::new(), Vec::new(), Vec::new());
+    let deadline = std::time::Instant::now() + Duration::from_secs(180);
+    while (got_hidden.is_empty() || got_clean.is_empty() || got_turning.is_empty())
+        && std::time::Instant::now() < deadline
+    {
         tokio::time::sleep(Duration::from_millis(200)).await;
         got_hidden.extend(findings(&drain(&sub_hidden)));
         got_clean.extend(findings(&drain(&sub_clean)));
+        got_turning.extend(findings(&drain(&sub_turning)));
     }
     rig.stop().await;
     assert_eq!(got_hidden.len(), 1, "one diagnosis: {got_hidden:?}");
@@ -521,4 +539,13 @@ async fn the_live_monitor_names_a_hidden_current_and_loss_and_nothing_on_a_clean
     assert!(miss <= 0.02, "current off by {miss} m/s");
     assert!((param("thruster_loss", "loss") - 0.25).abs() <= 0.05);
     assert!(got_clean[0].findings.is_empty(), "{:?}", got_clean[0]);
+    assert_eq!(got_clean[0].unexplained, None);
+    assert_eq!(got_turning.len(), 1, "one diagnosis: {got_turning:?}");
+    let t = &got_turning[0];
+    let u = t
+        .unexplained
+        .as_ref()
+        .unwrap_or_else(|| panic!("a turning current explained: {t:?}"));
+    assert!(u.nis_per_dof > 2.0 || !u.biased.is_empty(), "{u:?}");
+    assert!(t.causes().contains(&"unexplained".to_string()));
 }

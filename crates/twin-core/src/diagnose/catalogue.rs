@@ -110,6 +110,11 @@ pub(super) struct CauseSpec {
     pub name: &'static str,
     /// Whether it can be tried on a log.
     pub applies: fn(&LogKind) -> bool,
+    /// A cause of the vessel's dynamics: the forecasts run on them, so it
+    /// must make the held-out forecast at the longest horizon better (a
+    /// steady force it would only absorb, a wind or a turning current,
+    /// makes it worse).
+    pub must_improve_forecast: bool,
     /// How it is searched, and how its parameters are reported.
     pub search: Search,
 }
@@ -276,6 +281,7 @@ pub(super) const OUTSIDE_HULL: &str =
 
 static CURRENT: CauseSpec = CauseSpec {
     name: "current",
+    must_improve_forecast: false,
     applies: always,
     search: Search::States(StateSearch {
         free: free_current,
@@ -289,6 +295,7 @@ static CURRENT: CauseSpec = CauseSpec {
 
 static THRUSTER_LOSS: CauseSpec = CauseSpec {
     name: "thruster_loss",
+    must_improve_forecast: false,
     applies: |log| log.base == BaseModel::Kinetic,
     search: Search::States(StateSearch {
         free: free_losses,
@@ -300,6 +307,7 @@ static THRUSTER_LOSS: CauseSpec = CauseSpec {
 
 static HEADING_OFFSET: CauseSpec = CauseSpec {
     name: "heading_offset",
+    must_improve_forecast: false,
     applies: |log| log.has_heading,
     search: Search::Scalar(ScalarSearch {
         parameter: "offset_deg",
@@ -315,6 +323,7 @@ static HEADING_OFFSET: CauseSpec = CauseSpec {
 
 static SOG_SCALE: CauseSpec = CauseSpec {
     name: "sog_scale",
+    must_improve_forecast: false,
     applies: always,
     search: Search::Scalar(ScalarSearch {
         parameter: "scale",
@@ -330,6 +339,7 @@ static SOG_SCALE: CauseSpec = CauseSpec {
 
 static GNSS_LATENCY: CauseSpec = CauseSpec {
     name: "gnss_latency",
+    must_improve_forecast: false,
     applies: always,
     // A fix is stamped at or after the instant it describes, never before:
     // a latency is physically in [0, 2] s.
@@ -347,6 +357,7 @@ static GNSS_LATENCY: CauseSpec = CauseSpec {
 
 static LEVER_ARM: CauseSpec = CauseSpec {
     name: "lever_arm",
+    must_improve_forecast: false,
     // The water base needs a heading to turn a body offset into the fix's.
     applies: |log| log.base == BaseModel::Kinetic || log.has_heading,
     search: Search::Plane(PlaneSearch {
@@ -361,6 +372,7 @@ static LEVER_ARM: CauseSpec = CauseSpec {
 
 static STW_SCALE: CauseSpec = CauseSpec {
     name: "stw_scale",
+    must_improve_forecast: false,
     applies: |log| log.base == BaseModel::Water && log.has_stw,
     search: Search::Scalar(ScalarSearch {
         parameter: "scale",
@@ -376,6 +388,7 @@ static STW_SCALE: CauseSpec = CauseSpec {
 
 static SIDESLIP: CauseSpec = CauseSpec {
     name: "sideslip",
+    must_improve_forecast: false,
     applies: |log| log.base == BaseModel::Water && log.has_heading,
     search: Search::Scalar(ScalarSearch {
         parameter: "lateral_mps_per_radps",
@@ -404,6 +417,7 @@ const fn profile_scale(name: &'static str, set: fn(&mut Hypothesis, f64)) -> Cau
     CauseSpec {
         name,
         applies: kinetic_only,
+        must_improve_forecast: true,
         search: Search::Scalar(ScalarSearch {
             parameter: "scale",
             bounds: (0.4, 2.5),

@@ -596,9 +596,23 @@ fn score_round(
 
 /// Which bar a fitted candidate with held-out gain `gain_nll` misses, if
 /// any, in the order they are checked.
-fn missed_bar(f: &Fitted, gain_nll: f64, acc: &Acceptance) -> Option<String> {
+fn missed_bar(
+    f: &Fitted,
+    gain_nll: f64,
+    forecast_m: Forecasts,
+    acc: &Acceptance,
+) -> Option<String> {
     if let Some(why) = f.beyond_physics {
         Some(why.to_string())
+    } else if let Some((horizon_s, before_m, after_m)) = forecast_m.longest()
+        && f.cause.spec().must_improve_forecast
+        && after_m.is_finite()
+        && after_m >= before_m
+    {
+        Some(format!(
+            "it makes the held-out {horizon_s:.0} s forecast worse ({before_m:.1} m -> {after_m:.1} m), \
+             which a change of the vessel's dynamics would improve: it absorbs a force the catalogue has no cause for"
+        ))
     } else if gain_nll < acc.min_gain_nll {
         Some(format!(
             "held-out log-likelihood gain {gain_nll:.1} < {}",
@@ -624,6 +638,23 @@ fn missed_bar(f: &Fitted, gain_nll: f64, acc: &Acceptance) -> Option<String> {
     }
 }
 
+/// The held-out position forecast errors per horizon, without and with a
+/// candidate: `(horizon s, m)` each.
+#[derive(Clone, Copy)]
+struct Forecasts<'a> {
+    before_m: &'a [(f64, f64)],
+    after_m: &'a [(f64, f64)],
+}
+
+impl Forecasts<'_> {
+    /// `(horizon s, before m, after m)` at the longest horizon scored.
+    fn longest(&self) -> Option<(f64, f64, f64)> {
+        let (h, before) = *self.before_m.last()?;
+        let (_, after) = *self.after_m.last()?;
+        Some((h, before, after))
+    }
+}
+
 /// A round's outcome: the candidate taken, if any, and the others with why.
 struct Round {
     took: Option<(Fitted, PassOut, f64)>,
@@ -634,7 +665,9 @@ struct Round {
 /// largest held-out gain, unless another explains the data as well (a gain
 /// within `min_gain_nll` of it) with fewer parameters: the simpler
 /// explanation is named. The others are rejected with the bar they missed.
-fn choose(mut scored: Vec<(Fitted, PassOut)>, current_nll_test: f64, acc: &Acceptance) -> Round {
+fn choose(mut scored: Vec<(Fitted, PassOut)>, current: &PassOut, acc: &Acceptance) -> Round {
+    let current_nll_test = current.nll_test;
+    let before_m = current.rmse();
     scored.sort_by(|a, b| {
         (current_nll_test - b.1.nll_test).total_cmp(&(current_nll_test - a.1.nll_test))
     });
@@ -642,7 +675,12 @@ fn choose(mut scored: Vec<(Fitted, PassOut)>, current_nll_test: f64, acc: &Accep
         .iter()
         .map(|(f, out)| {
             let gain = current_nll_test - out.nll_test;
-            (gain, missed_bar(f, gain, acc))
+            let after_m = out.rmse();
+            let forecast_m = Forecasts {
+                before_m: &before_m,
+                after_m: &after_m,
+            };
+            (gain, missed_bar(f, gain, forecast_m, acc))
         })
         .collect();
     let clearing = || (0..scored.len()).filter(|i| judged[*i].1.is_none());
@@ -799,11 +837,7 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     let mut rejected = Vec::new();
     let mut remaining: Vec<Cause> = Cause::ALL.into_iter().filter(|c| c.applies(&log)).collect();
     while findings.len() < config.max_findings && !remaining.is_empty() {
-        let round = choose(
-            score_round(&ctx, &accepted, &remaining),
-            current_out.nll_test,
-            acc,
-        );
+        let round = choose(score_round(&ctx, &accepted, &remaining), &current_out, acc);
         rejected = round.rejected;
         let Some((f, out, gain)) = round.took else {
             break;
@@ -904,6 +938,13 @@ mod tests {
         }
     }
 
+    fn at(nll_test: f64) -> PassOut {
+        PassOut {
+            nll_test,
+            ..PassOut::default()
+        }
+    }
+
     fn scored(f: Fitted, nll_test: f64) -> (Fitted, PassOut) {
         (
             f,
@@ -932,7 +973,7 @@ mod tests {
                 scored(fitted(Cause::LeverArm, 0.5, 8.0), 960.0),
                 scored(fitted(Cause::ThrusterLoss, 0.5, 8.0), 995.0),
             ],
-            1000.0,
+            &at(1000.0),
             &acc,
         );
         let (f, _, gain) = round.took.expect("one clears the bars");
@@ -967,7 +1008,7 @@ mod tests {
                 scored(fitted(Cause::ThrusterLoss, 0.3, 8.0), 900.0),
                 scored(fitted(Cause::SurgeDamping, 0.3, 8.0), 905.0),
             ],
-            1000.0,
+            &at(1000.0),
             &acc,
         );
         assert_eq!(round.took.expect("taken").0.cause, Cause::SurgeDamping);
@@ -983,7 +1024,7 @@ mod tests {
                 scored(fitted(Cause::ThrusterLoss, 0.3, 8.0), 900.0),
                 scored(fitted(Cause::SurgeDamping, 0.3, 8.0), 920.0),
             ],
-            1000.0,
+            &at(1000.0),
             &acc,
         );
         assert_eq!(round.took.expect("taken").0.cause, Cause::ThrusterLoss);
@@ -991,5 +1032,50 @@ mod tests {
             round.rejected[0].reason,
             "a larger gain was taken this round"
         );
+    }
+
+    /// A cause of the vessel's dynamics that makes the longest forecast
+    /// worse is refused, however much one-step likelihood it buys; a sensor
+    /// cause is not judged on the forecast.
+    #[test]
+    fn a_dynamics_cause_must_improve_the_longest_forecast() {
+        let acc = Acceptance::default();
+        let current = PassOut {
+            nll_test: 1000.0,
+            forecast: vec![(5.0, 100.0, 4), (30.0, 400.0, 4)],
+            ..PassOut::default()
+        };
+        let with_forecast = |f: Fitted, sq_30: f64| {
+            (
+                f,
+                PassOut {
+                    nll_test: 900.0,
+                    forecast: vec![(5.0, 1.0, 4), (30.0, sq_30, 4)],
+                    ..PassOut::default()
+                },
+            )
+        };
+        let round = choose(
+            vec![
+                with_forecast(fitted(Cause::Mass, 0.5, 8.0), 900.0),
+                with_forecast(fitted(Cause::HeadingOffset, 0.2, 8.0), 900.0),
+            ],
+            &current,
+            &acc,
+        );
+        assert_eq!(round.took.expect("taken").0.cause, Cause::HeadingOffset);
+        assert!(
+            round.rejected[0]
+                .reason
+                .starts_with("it makes the held-out 30 s forecast worse (10.0 m -> 15.0 m)"),
+            "{}",
+            round.rejected[0].reason
+        );
+        let round = choose(
+            vec![with_forecast(fitted(Cause::Mass, 0.5, 8.0), 100.0)],
+            &current,
+            &acc,
+        );
+        assert_eq!(round.took.expect("taken").0.cause, Cause::Mass);
     }
 }
