@@ -78,6 +78,12 @@ pub const BLOCKS: &[Block] = &[
         shape: Shape::Markdown,
     },
     Block {
+        name: "diagnose-perturbed",
+        file: "docs/accuracy.md",
+        command: "cargo test -q -p twin-cli --test hidden_effects_perturbed -- --nocapture 2>/dev/null | grep -E '^(draw|diagnose-perturbed)'",
+        shape: Shape::Fenced,
+    },
+    Block {
         name: "bench-core",
         file: "docs/performance.md",
         command: "cargo run --release -q -p twin-bench -- core",

@@ -8,89 +8,14 @@
 
 #[path = "common/hidden.rs"]
 mod hidden;
+#[path = "common/twin_sim_draws.rs"]
+mod twin_sim_draws;
 
 use hidden::{Hidden, judge};
-
-use std::io::Cursor;
-use std::path::Path;
+use twin_sim_draws::{apply, base, diagnose_scenario, draw};
 
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
-use twin_cli::diagnose::{DiagnoseReport, diagnose_loaded, load};
-use twin_cli::simulate::{OutputFormat, simulate_to_bytes};
-use twin_core::diagnose::DiagnoseConfig;
-use twin_sim::{CurrentSpec, Scenario};
-use twin_wire::SourceChoice;
-use twin_wire::profile::VesselProfile;
-
-fn base() -> Scenario {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../config/scenarios/diagnose_base.toml"
-    );
-    Scenario::from_toml_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
-
-fn draw(rng: &mut StdRng) -> Hidden {
-    let sign = |rng: &mut StdRng| if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-    match rng.random_range(0..6) {
-        0 => Hidden::Nothing,
-        1 => Hidden::Current {
-            speed_mps: rng.random_range(0.1..0.5),
-            toward_deg: rng.random_range(0.0..360.0),
-        },
-        2 => Hidden::HeadingOffset {
-            offset_deg: sign(rng) * rng.random_range(2.0..10.0),
-        },
-        3 => Hidden::SogScale {
-            scale: 1.0 + sign(rng) * rng.random_range(0.02..0.08),
-        },
-        4 => Hidden::Latency {
-            latency_s: rng.random_range(0.2..1.0),
-        },
-        _ => Hidden::Loss {
-            port: rng.random_bool(0.5),
-            loss: rng.random_range(0.1..0.4),
-        },
-    }
-}
-
-fn apply(sc: &mut Scenario, h: Hidden) {
-    match h {
-        Hidden::Nothing => {}
-        Hidden::Current {
-            speed_mps,
-            toward_deg,
-        } => {
-            sc.current = Some(CurrentSpec {
-                speed_mps,
-                toward_deg,
-                rotation_deg_s: 0.0,
-                speed_amplitude_mps: 0.0,
-                speed_period_s: 600.0,
-            })
-        }
-        Hidden::HeadingOffset { offset_deg } => sc.sensors.heading.offset_deg = offset_deg,
-        Hidden::SogScale { scale } => sc.sensors.gnss.sog_scale = scale,
-        // The simulator stamps a fix with its true time minus `latency_s`:
-        // data older than their stamps is a negative value there.
-        Hidden::Latency { latency_s } => sc.sensors.gnss.latency_s = -latency_s,
-        Hidden::Loss { port: true, loss } => sc.propellers.port.loss = loss,
-        Hidden::Loss { port: false, loss } => sc.propellers.starboard.loss = loss,
-    }
-}
-
-fn diagnose_scenario(sc: &Scenario, name: &str) -> DiagnoseReport {
-    let (bytes, _) = simulate_to_bytes(sc, OutputFormat::JsonLines).unwrap();
-    let log = load(Cursor::new(bytes), Path::new(name), SourceChoice::Best).unwrap();
-    diagnose_loaded(
-        name,
-        &log,
-        &DiagnoseConfig::default(),
-        &VesselProfile::otter(),
-    )
-    .unwrap()
-}
 
 #[test]
 fn hidden_effects_are_named_with_their_size() {
