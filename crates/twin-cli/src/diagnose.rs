@@ -28,7 +28,8 @@
 //!                 components: north, east, sog, cog, heading, stw
 //! ```
 //! Causes and parameter names: `current` (`speed_mps`, `toward_deg`, and the
-//! `north_mps`, `east_mps` components), `thruster_loss` (`side`, `loss`),
+//! `north_mps`, `east_mps` components), `thruster_loss` (`side`, `loss`, and
+//! `onset_s`: seconds from the first fix to the loss's onset),
 //! `heading_offset` (`offset_deg`: sensor minus true), `sog_scale` (`scale`:
 //! reported over true), `gnss_latency` (`latency_s`: how much older the GNSS
 //! data are than their stamps), `lever_arm` (`x_m`, `y_m`: antenna forward,

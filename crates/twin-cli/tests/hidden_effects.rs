@@ -127,3 +127,23 @@ fn a_current_and_a_propeller_loss_are_both_named() {
     assert_eq!(loss.parameters["side"], "starboard");
     assert!((loss.parameters["loss"].as_f64().unwrap() - 0.22).abs() <= 0.044);
 }
+
+/// A loss that starts mid-log is named with its onset: the time from
+/// which the filter's loss estimate stays above half its final value,
+/// within 30 s of the truth.
+#[test]
+fn a_loss_that_starts_mid_log_is_found_with_its_onset() {
+    let mut sc = base();
+    sc.seed = 777;
+    sc.propellers.port.loss = 0.3;
+    sc.propellers.port.onset_s = 90.0;
+    let r = diagnose_scenario(&sc, "mid-log-loss");
+    let causes: Vec<&str> = r.findings.iter().map(|f| f.cause.as_str()).collect();
+    assert_eq!(causes, ["thruster_loss"], "{:?}", r.findings);
+    let f = &r.findings[0];
+    assert_eq!(f.parameters["side"], "port");
+    let loss = f.parameters["loss"].as_f64().unwrap();
+    assert!((loss - 0.3).abs() <= 0.2 * 0.3, "loss {loss}");
+    let onset = f.parameters["onset_s"].as_f64().expect("an onset");
+    assert!((onset - 90.0).abs() <= 30.0, "onset {onset} s, truth 90 s");
+}

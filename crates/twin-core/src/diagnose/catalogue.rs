@@ -245,12 +245,17 @@ fn current_report(s: &AtSplit, acc: &Acceptance) -> StateReport {
 /// The losses, the larger one naming the side.
 fn loss_report(s: &AtSplit, acc: &Acceptance) -> StateReport {
     let side = if s.loss[0] >= s.loss[1] { 0 } else { 1 };
+    let mut parameters = vec![
+        ("loss", s.loss[side], s.loss_sigma[side]),
+        ("loss_port", s.loss[0], s.loss_sigma[0]),
+        ("loss_starboard", s.loss[1], s.loss_sigma[1]),
+    ];
+    if s.loss_onset_s[side].is_finite() {
+        // Read off the filter's track: no standard deviation of its own.
+        parameters.push(("onset_s", s.loss_onset_s[side], f64::NAN));
+    }
     StateReport {
-        parameters: vec![
-            ("loss", s.loss[side], s.loss_sigma[side]),
-            ("loss_port", s.loss[0], s.loss_sigma[0]),
-            ("loss_starboard", s.loss[1], s.loss_sigma[1]),
-        ],
+        parameters,
         side: Some(if side == 0 { "port" } else { "starboard" }),
         size: s.loss[side],
         z: s.loss[side] / s.loss_sigma[side].max(1e-12),

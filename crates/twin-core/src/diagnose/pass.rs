@@ -31,6 +31,10 @@ pub(super) struct AtSplit {
     pub current_cov: [[f64; 2]; 2],
     pub loss: [f64; 2],
     pub loss_sigma: [f64; 2],
+    /// Per propeller, seconds from the log's first fix to the step from
+    /// which its estimated loss stays at or above half its value at the
+    /// split (NaN where there is no loss, or no propeller data).
+    pub loss_onset_s: [f64; 2],
 }
 
 /// What a pass measured.
@@ -108,6 +112,30 @@ trait PassBase<const N: usize, const M: usize, const P: usize> {
     /// `[sin heading, cos heading, speed, yaw rate]` of a state.
     fn signatures(&self, x: &SVector<f64, N>) -> [f64; 4];
     fn at_split(&self, state: &AekfState<N, M, P>) -> AtSplit;
+    /// The propellers' estimated losses, where the base has them.
+    fn losses(&self, _state: &AekfState<N, M, P>) -> Option<[f64; 2]> {
+        None
+    }
+}
+
+/// Per propeller, the time from which the loss track stays at or above half
+/// its last value (NaN for a last value below `min_loss`).
+fn loss_onsets(track: &[(f64, [f64; 2])], min_loss: f64) -> [f64; 2] {
+    let mut onset = [f64::NAN; 2];
+    let Some((_, last)) = track.last() else {
+        return onset;
+    };
+    for side in 0..2 {
+        if last[side].is_nan() || last[side] < min_loss {
+            continue;
+        }
+        let half = 0.5 * last[side];
+        onset[side] = track
+            .iter()
+            .rposition(|(_, l)| l[side] < half)
+            .map_or(track[0].0, |i| track[(i + 1).min(track.len() - 1)].0);
+    }
+    onset
 }
 
 struct Kinetic(KineticBase);
@@ -170,7 +198,12 @@ impl PassBase<STATES, MEASUREMENTS, FAULTS> for Kinetic {
             current_cov: [[cov[(a, a)], cov[(a, b)]], [cov[(b, a)], cov[(b, b)]]],
             loss: [st.theta[0], st.theta[1]],
             loss_sigma: [sig[0], sig[1]],
+            loss_onset_s: [f64::NAN; 2],
         }
+    }
+
+    fn losses(&self, st: &KineticState) -> Option<[f64; 2]> {
+        Some([st.theta[0], st.theta[1]])
     }
 }
 
@@ -216,6 +249,7 @@ impl PassBase<7, 6, 0> for Water {
         AtSplit {
             current: [st.x[a], st.x[b]],
             current_cov: [[st.p[(a, a)], st.p[(a, b)]], [st.p[(b, a)], st.p[(b, b)]]],
+            loss_onset_s: [f64::NAN; 2],
             ..AtSplit::default()
         }
     }
@@ -308,9 +342,12 @@ where
     let mut next_forecast_s = f64::NEG_INFINITY;
     let mut last_speed = None::<(f64, f64)>;
     let t0 = steps[0].fix.time_s;
+    let mut loss_track: Vec<(f64, [f64; 2])> = Vec::new();
+    let min_loss = opts.config.acceptance.min_loss;
     for k in 1..steps.len() {
         if k == opts.split {
             out.at_split = base.at_split(&state);
+            out.at_split.loss_onset_s = loss_onsets(&loss_track, min_loss);
             if opts.train_only {
                 break;
             }
@@ -326,6 +363,9 @@ where
             * (report.nis + log_det_available(&report.innovation_covariance, &avail) + dof * ln2pi);
         if k < opts.split {
             out.nll_train += nll;
+            if let Some(l) = base.losses(&state) {
+                loss_track.push((step.time_s - t0, l));
+            }
             continue;
         }
         out.nll_test += nll;
@@ -360,6 +400,7 @@ where
     }
     if opts.split >= steps.len() {
         out.at_split = base.at_split(&state);
+        out.at_split.loss_onset_s = loss_onsets(&loss_track, min_loss);
     }
     out
 }
@@ -400,5 +441,31 @@ fn score_forecasts<B, const N: usize, const M: usize, const P: usize>(
             *sq += (pred[0] - m.north_m).powi(2) + (pred[1] - m.east_m).powi(2);
             *n += 1;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_loss_onset_is_where_the_track_last_rose_through_half_its_value() {
+        let track: Vec<(f64, [f64; 2])> = (0..100)
+            .map(|i| {
+                let t = f64::from(i);
+                // Port: none until 40 s, then 0.3 after a ramp of 10 s.
+                let port = (0.03 * (t - 40.0)).clamp(0.0, 0.3);
+                (t, [port, 0.01])
+            })
+            .collect();
+        let onset = loss_onsets(&track, 0.03);
+        // Half of 0.3 is reached at 45 s.
+        assert_eq!(onset[0], 45.0);
+        assert!(onset[1].is_nan(), "no loss on starboard: {}", onset[1]);
+        // A loss there from the start has its onset at the first step.
+        let from_start: Vec<(f64, [f64; 2])> =
+            (0..10).map(|i| (f64::from(i), [0.2, 0.0])).collect();
+        assert_eq!(loss_onsets(&from_start, 0.03)[0], 0.0);
+        assert!(loss_onsets(&[], 0.03)[0].is_nan());
     }
 }
