@@ -11,7 +11,7 @@ mod hidden;
 #[path = "common/twin_sim_draws.rs"]
 mod twin_sim_draws;
 
-use hidden::{Hidden, judge};
+use hidden::{Hidden, describe, judge, named};
 use twin_sim_draws::{apply, base, diagnose_scenario, draw};
 
 use rand::rngs::StdRng;
@@ -36,17 +36,7 @@ fn hidden_effects_are_named_with_their_size() {
                             sc.seed = *seed;
                             apply(&mut sc, *h);
                             let r = diagnose_scenario(&sc, &format!("draw-{i}"));
-                            let summary: Vec<String> = r
-                                .findings
-                                .iter()
-                                .map(|f| {
-                                    format!(
-                                        "{} {:?} (gain {:.0})",
-                                        f.cause, f.parameters, f.gain.heldout_nll_gain
-                                    )
-                                })
-                                .collect();
-                            (*i, *h, judge(*h, &r), summary.join("; "))
+                            (*i, *h, judge(*h, &r), named(&r))
                         })
                         .collect::<Vec<_>>()
                 })
@@ -60,12 +50,8 @@ fn hidden_effects_are_named_with_their_size() {
     let mut failures = Vec::new();
     for (i, h, verdict, summary) in &results {
         println!(
-            "draw {i:2}: {h:?} -> {}{}",
-            if summary.is_empty() {
-                "no finding"
-            } else {
-                summary
-            },
+            "draw {i:2}: {} -> {summary}{}",
+            describe(*h),
             match verdict {
                 Ok(()) => String::new(),
                 Err(e) => format!("   <-- WRONG: {e}"),

@@ -32,7 +32,7 @@
 #[path = "common/hidden.rs"]
 mod hidden;
 
-use hidden::{Hidden, judge};
+use hidden::{Hidden, describe, judge, named};
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -199,55 +199,6 @@ fn diagnose_log(log: &Path) -> DiagnoseReport {
         &VesselProfile::otter(),
     )
     .unwrap()
-}
-
-/// The hidden effect in the table's words.
-fn describe(h: Hidden) -> String {
-    match h {
-        Hidden::Nothing => "nothing".into(),
-        Hidden::Current {
-            speed_mps,
-            toward_deg,
-        } => format!("current {speed_mps:.3} m/s toward {toward_deg:.1} deg"),
-        Hidden::HeadingOffset { offset_deg } => format!("heading offset {offset_deg:+.2} deg"),
-        Hidden::SogScale { scale } => format!("SOG scale {scale:.4}"),
-        Hidden::Latency { latency_s } => format!("GNSS latency {latency_s:.3} s"),
-        Hidden::Loss { port, loss } => {
-            format!("{} loss {loss:.3}", if port { "port" } else { "starboard" })
-        }
-    }
-}
-
-/// The findings in the table's words.
-fn named(r: &DiagnoseReport) -> String {
-    if r.findings.is_empty() {
-        return "nothing".into();
-    }
-    r.findings
-        .iter()
-        .map(|f| {
-            let p = |n: &str| f.parameters[n].as_f64().unwrap_or(f64::NAN);
-            let what = match f.cause.as_str() {
-                "current" => format!(
-                    "current {:.3} m/s toward {:.1} deg",
-                    p("speed_mps"),
-                    p("toward_deg")
-                ),
-                "heading_offset" => format!("heading offset {:+.2} deg", p("offset_deg")),
-                "sog_scale" => format!("SOG scale {:.4}", p("scale")),
-                "gnss_latency" => format!("GNSS latency {:.3} s", p("latency_s")),
-                "thruster_loss" => format!(
-                    "{} loss {:.3}",
-                    f.parameters["side"].as_str().unwrap_or("?"),
-                    p("loss")
-                ),
-                "lever_arm" => format!("lever arm x {:.2} m, y {:.2} m", p("x_m"), p("y_m")),
-                other => format!("{other} {:?}", f.parameters),
-            };
-            format!("{what} (gain {:.0})", f.gain.heldout_nll_gain)
-        })
-        .collect::<Vec<_>>()
-        .join("; ")
 }
 
 /// One draw's outcome.

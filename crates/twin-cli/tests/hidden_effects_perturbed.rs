@@ -20,7 +20,7 @@ mod hidden;
 #[path = "common/twin_sim_draws.rs"]
 mod twin_sim_draws;
 
-use hidden::{Hidden, judge};
+use hidden::{Hidden, describe, judge, named};
 use twin_cli::diagnose::DiagnoseReport;
 use twin_sim::VesselSpec;
 use twin_sim_draws::{apply, base, diagnose_scenario, draw};
@@ -96,12 +96,7 @@ fn run_draw(i: usize, h: Hidden, p: Option<Perturbation>, seed: u64) -> Outcome 
         .findings
         .retain(|f| !MODEL_CAUSES.contains(&f.cause.as_str()));
     let verdict = judge(h, &others).and_then(|()| judge_model(p, &r));
-    let summary: Vec<String> = r
-        .findings
-        .iter()
-        .map(|f| format!("{} {:?}", f.cause, f.parameters))
-        .collect();
-    (i, h, p, verdict, summary.join("; "))
+    (i, h, p, verdict, named(&r))
 }
 
 #[test]
@@ -152,16 +147,12 @@ fn hidden_effects_on_vessels_that_differ_from_their_profile() {
     let (mut named, mut perturbed_right) = (0, 0);
     for (i, h, p, verdict, summary) in &results {
         println!(
-            "draw {i:2}: {h:?} on {} -> {}{}",
+            "draw {i:2}: {} on {} -> {summary}{}",
+            describe(*h),
             p.map_or("the profile's vessel".to_string(), |p| format!(
                 "{} x {:.2}",
                 p.cause, p.scale
             )),
-            if summary.is_empty() {
-                "no finding"
-            } else {
-                summary
-            },
             match verdict {
                 Ok(_) => String::new(),
                 Err(e) => format!("   <-- misses the bars: {e}"),
