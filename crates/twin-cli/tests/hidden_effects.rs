@@ -12,7 +12,7 @@ mod hidden;
 mod twin_sim_draws;
 
 use hidden::{Hidden, describe, judge, named};
-use twin_sim_draws::{apply, base, diagnose_scenario, draw};
+use twin_sim_draws::{apply, base, diagnose_scenario, draw, on_two_threads};
 
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -23,30 +23,14 @@ fn hidden_effects_are_named_with_their_size() {
     let draws: Vec<(usize, Hidden, u64)> = (0..30)
         .map(|i| (i, draw(&mut rng), rng.random_range(0..1_000_000)))
         .collect();
-    // Two threads: the machine has two cores.
-    let results: Vec<(usize, Hidden, Result<(), String>, String)> = std::thread::scope(|s| {
-        let handles: Vec<_> = draws
-            .chunks(draws.len().div_ceil(2))
-            .map(|chunk| {
-                s.spawn(move || {
-                    chunk
-                        .iter()
-                        .map(|(i, h, seed)| {
-                            let mut sc = base();
-                            sc.seed = *seed;
-                            apply(&mut sc, *h);
-                            let r = diagnose_scenario(&sc, &format!("draw-{i}"));
-                            (*i, *h, judge(*h, &r), named(&r))
-                        })
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().unwrap())
-            .collect()
-    });
+    let results: Vec<(usize, Hidden, Result<(), String>, String)> =
+        on_two_threads(&draws, |(i, h, seed)| {
+            let mut sc = base();
+            sc.seed = *seed;
+            apply(&mut sc, *h);
+            let r = diagnose_scenario(&sc, &format!("draw-{i}"));
+            (*i, *h, judge(*h, &r), named(&r))
+        });
     let mut failures = Vec::new();
     for (i, h, verdict, summary) in &results {
         println!(

@@ -23,7 +23,7 @@ mod twin_sim_draws;
 use hidden::{Hidden, describe, judge, named};
 use twin_cli::diagnose::DiagnoseReport;
 use twin_sim::VesselSpec;
-use twin_sim_draws::{apply, base, diagnose_scenario, draw};
+use twin_sim_draws::{apply, base, diagnose_scenario, draw, on_two_threads};
 
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -125,24 +125,8 @@ fn hidden_effects_on_vessels_that_differ_from_their_profile() {
         Result<bool, String>,
         String,
     );
-    // Two threads: the machine has two cores.
-    let results: Vec<Outcome> = std::thread::scope(|s| {
-        let handles: Vec<_> = draws
-            .chunks(draws.len().div_ceil(2))
-            .map(|chunk| {
-                s.spawn(move || {
-                    chunk
-                        .iter()
-                        .map(|(i, h, p, seed)| run_draw(*i, *h, *p, *seed))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().unwrap())
-            .collect()
-    });
+    let results: Vec<Outcome> =
+        on_two_threads(&draws, |(i, h, p, seed)| run_draw(*i, *h, *p, *seed));
     let mut control_failures = Vec::new();
     let (mut named, mut perturbed_right) = (0, 0);
     for (i, h, p, verdict, summary) in &results {

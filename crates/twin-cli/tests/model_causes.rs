@@ -10,15 +10,16 @@
 //! none was planted; an effect the catalogue has no cause for ends
 //! "unexplained"; the clean trial names nothing and is explained.
 
-use std::io::Cursor;
-use std::path::Path;
+#[path = "common/hidden.rs"]
+#[allow(dead_code)]
+mod hidden;
+#[path = "common/twin_sim_draws.rs"]
+#[allow(dead_code)]
+mod twin_sim_draws;
 
-use twin_cli::diagnose::{DiagnoseReport, diagnose_loaded, load};
-use twin_cli::simulate::{OutputFormat, simulate_to_bytes};
-use twin_core::diagnose::DiagnoseConfig;
+use twin_cli::diagnose::DiagnoseReport;
 use twin_sim::{CurrentSpec, Scenario, VesselSpec};
-use twin_wire::SourceChoice;
-use twin_wire::profile::VesselProfile;
+use twin_sim_draws::diagnose_scenario;
 
 fn scenario(file: &str) -> Scenario {
     let path = format!(
@@ -26,18 +27,6 @@ fn scenario(file: &str) -> Scenario {
         env!("CARGO_MANIFEST_DIR")
     );
     Scenario::from_toml_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
-
-fn diagnose_scenario(sc: &Scenario, name: &str) -> DiagnoseReport {
-    let (bytes, _) = simulate_to_bytes(sc, OutputFormat::JsonLines).unwrap();
-    let log = load(Cursor::new(bytes), Path::new(name), SourceChoice::Best).unwrap();
-    diagnose_loaded(
-        name,
-        &log,
-        &DiagnoseConfig::default(),
-        &VesselProfile::otter(),
-    )
-    .unwrap()
 }
 
 fn causes(r: &DiagnoseReport) -> Vec<&str> {

@@ -85,3 +85,18 @@ pub fn diagnose_scenario(sc: &Scenario, name: &str) -> DiagnoseReport {
     )
     .unwrap()
 }
+
+/// `f` over the items on two threads (the machine has two cores), the
+/// results in the items' order.
+pub fn on_two_threads<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    std::thread::scope(|s| {
+        let handles: Vec<_> = items
+            .chunks(items.len().div_ceil(2).max(1))
+            .map(|chunk| s.spawn(|| chunk.iter().map(&f).collect::<Vec<R>>()))
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap())
+            .collect()
+    })
+}
