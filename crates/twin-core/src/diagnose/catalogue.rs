@@ -280,6 +280,18 @@ pub(super) const MIN_LOSS: f64 = -0.1;
 /// Why a negative loss is not a loss.
 pub(super) const NEGATIVE_LOSS: &str = "it wants a propeller giving more thrust than the profile says (a negative loss):      the profile's thrust, damping or mass, not a fault";
 
+/// Why the same loss on both propellers is not a propeller fault.
+pub(super) const EQUAL_LOSSES: &str = "it wants the same loss on both propellers: the same motion as the profile's thrust, \
+     or its hull resistance, being off for both; a profile error, not a fault of one propeller";
+
+/// Whether the losses are both clearly there and equal within `tolerance`:
+/// `T = (1 - loss) k n|n|` on both sides is exactly a thrust coefficient
+/// scaled by `1 - loss`, which the vessel's motion cannot tell from the
+/// profile.
+fn equal_losses(loss: [f64; 2], tolerance: f64) -> bool {
+    loss[0].min(loss[1]) > 2.0 * tolerance && (loss[0] - loss[1]).abs() < tolerance
+}
+
 /// Why an antenna beyond the hull is not a lever arm.
 pub(super) const OUTSIDE_HULL: &str =
     "it wants an antenna outside the hull: the lever arm is absorbing something else";
@@ -306,7 +318,15 @@ static THRUSTER_LOSS: CauseSpec = CauseSpec {
         free: free_losses,
         off: |h| h.loss = Term::Off,
         report: loss_report,
-        beyond: |s| (s.loss[0].min(s.loss[1]) < MIN_LOSS).then_some(NEGATIVE_LOSS),
+        beyond: |s| {
+            if s.loss[0].min(s.loss[1]) < MIN_LOSS {
+                Some(NEGATIVE_LOSS)
+            } else if equal_losses(s.loss, 0.03) {
+                Some(EQUAL_LOSSES)
+            } else {
+                None
+            }
+        },
     }),
 };
 
@@ -575,6 +595,16 @@ mod tests {
         assert_eq!(beyond(Cause::ThrusterLoss, &s), None);
         s.loss = [0.2, -0.2];
         assert_eq!(beyond(Cause::ThrusterLoss, &s), Some(NEGATIVE_LOSS));
+        s.loss = [0.22, 0.21];
+        assert_eq!(beyond(Cause::ThrusterLoss, &s), Some(EQUAL_LOSSES));
+        s.loss = [0.22, 0.0];
+        assert_eq!(beyond(Cause::ThrusterLoss, &s), None);
+        s.loss = [0.03, 0.02];
+        assert_eq!(
+            beyond(Cause::ThrusterLoss, &s),
+            None,
+            "too small to be a loss"
+        );
     }
 
     #[test]

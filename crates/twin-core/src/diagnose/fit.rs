@@ -766,6 +766,39 @@ struct Accepted {
     out: PassOut,
 }
 
+/// A state cause accepted early is re-estimated with each later one; where
+/// its final estimates (`states`) leave its physical bounds (two equal
+/// losses once a sensor effect is taken out, say), it is dropped with the
+/// reason.
+fn drop_beyond_physics(
+    ctx: &Ctx<'_>,
+    model: &mut Accepted,
+    findings: &mut Vec<Finding>,
+    rejected: &mut Vec<Rejected>,
+    states: &AtSplit,
+) {
+    let beyond = |c: Cause| match &c.spec().search {
+        Search::States(s) => (s.beyond)(states),
+        Search::Scalar(_) | Search::Plane(_) => None,
+    };
+    while let Some(i) = findings.iter().position(|f| beyond(f.cause).is_some()) {
+        let without_it = without(&model.hypothesis, findings[i].cause);
+        let out = ctx.pass(&without_it, false, true);
+        if out.failed {
+            return;
+        }
+        let f = findings.remove(i);
+        rejected.push(Rejected {
+            cause: f.cause,
+            parameters: f.parameters,
+            heldout_nll_gain: out.nll_test - model.out.nll_test,
+            reason: beyond(f.cause).unwrap_or_default().to_string(),
+        });
+        model.hypothesis = without_it;
+        model.out = out;
+    }
+}
+
 /// After the greedy pass, each finding is judged again against the model
 /// with all the others: the one that gains least, if below the bar, is
 /// dropped (a later finding explains what it did), and the rest judged
@@ -836,6 +869,7 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     let mut findings: Vec<Finding> = Vec::new();
     let mut rejected = Vec::new();
     let mut remaining: Vec<Cause> = Cause::ALL.into_iter().filter(|c| c.applies(&log)).collect();
+    let mut last_states: Option<AtSplit> = None;
     while findings.len() < config.max_findings && !remaining.is_empty() {
         let round = choose(score_round(&ctx, &accepted, &remaining), &current_out, acc);
         rejected = round.rejected;
@@ -853,6 +887,7 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
         if let Some(states) = &f.states {
             let last = findings.len() - 1;
             refresh_state_findings(&mut findings[..last], states, acc);
+            last_states = Some(*states);
         }
         remaining.retain(|c| *c != f.cause);
         accepted = f.hypothesis;
@@ -862,6 +897,9 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
         hypothesis: accepted,
         out: current_out,
     };
+    if let Some(states) = &last_states {
+        drop_beyond_physics(&ctx, &mut model, &mut findings, &mut rejected, states);
+    }
     drop_redundant(&ctx, &mut model, &mut findings, &mut rejected);
     let current_out = model.out;
     let extended = summarise(&current_out.records);
