@@ -37,7 +37,7 @@ use zenoh::key_expr::KeyExpr;
 use zenoh::qos::CongestionControl;
 
 use crate::daemon::load::{
-    FLEET_SPEED_MPS, bench_settings, free_port, vessel_id, wait_matching, zenoh_config, zerr,
+    FLEET_SPEED_MPS, bench_settings, free_port, vessel_id, zenoh_config, zerr,
 };
 use crate::daemon::motion::{Circle, Fleet};
 use crate::daemon::procstat;
@@ -65,8 +65,9 @@ pub struct SoakRow {
     pub rss_mib: f64,
     /// The daemon's latest statistics, if any came.
     pub daemon: Option<DaemonStatsMessage>,
-    /// Rejections by the vessels' twins (their latest `twin/stats`), summed.
-    pub rejected: u64,
+    /// Rejections by the vessels' twins (their latest `twin/stats`), summed
+    /// over the vessels, by reason.
+    pub rejected: BTreeMap<String, u64>,
     /// Vessel 0's latest published port and starboard loss.
     pub healthy_loss: [Option<f64>; 2],
     /// Fixes after which a covariance of the shadow twin was not positive
@@ -80,7 +81,7 @@ pub struct SoakRow {
 #[derive(Default)]
 struct Heard {
     daemon: Option<DaemonStatsMessage>,
-    rejected: BTreeMap<String, u64>,
+    rejected: BTreeMap<String, BTreeMap<String, u64>>,
     healthy: Option<FaultMessage>,
 }
 
@@ -103,8 +104,8 @@ fn min_eigenvalue(twin: &VesselTwin) -> Option<f64> {
     Some(sym.symmetric_eigenvalues().min())
 }
 
-/// Runs the soak and returns its rows (one per hour of vessel time).
-pub fn run(opts: &SoakOptions) -> anyhow::Result<Vec<SoakRow>> {
+/// Runs the soak.
+pub fn run(opts: &SoakOptions) -> anyhow::Result<Soak> {
     anyhow::ensure!((1..=10_000).contains(&opts.vessels), "1 to 10,000 vessels");
     anyhow::ensure!(
         opts.hours > 0.0 && opts.hours <= 24.0 * 30.0,
@@ -139,25 +140,8 @@ pub fn run(opts: &SoakOptions) -> anyhow::Result<Vec<SoakRow>> {
         daemon.clone(),
         cancel.clone(),
     )));
-    let keys: Vec<[KeyExpr<'static>; 2]> = (0..opts.vessels)
-        .map(|v| {
-            let id = vessel_id(v);
-            let declare = |topic: &str| {
-                generator
-                    .declare_keyexpr(format!("asv/{id}/{topic}"))
-                    .wait()
-                    .map_err(zerr("declaring a key"))
-            };
-            Ok([declare("actuators")?, declare("gnss")?])
-        })
-        .collect::<anyhow::Result<_>>()?;
-    rt.block_on(async {
-        let probe = generator
-            .declare_publisher(format!("asv/{}/gnss", vessel_id(0)))
-            .await
-            .map_err(zerr("declaring a probe"))?;
-        wait_matching(&probe, Duration::from_secs(20)).await
-    })?;
+    let keys = crate::daemon::cold_start::declare_keys(&generator, opts.vessels)?;
+    rt.block_on(crate::daemon::cold_start::wait_subscribed(&generator))?;
 
     let mut shadow = VesselTwin::new(shadow_config).context("the shadow twin")?;
     let fleet = Fleet::new(Circle::from_simulator(FLEET_SPEED_MPS)?, opts.vessels)?;
@@ -169,17 +153,24 @@ pub fn run(opts: &SoakOptions) -> anyhow::Result<Vec<SoakRow>> {
     let start = Instant::now();
     let mut rows = Vec::new();
     let mut not_pd = 0_u64;
+    let mut shadow_rejected = 0_u64;
+    let mut first_rejection: Option<(f64, String)> = None;
     for k in 0..steps {
         let elapsed_s = k as f64 * dt_s;
         let time_s = epoch_s + elapsed_s;
         for (v, [actuators, gnss]) in keys.iter().enumerate() {
-            let shafts = fleet.shafts(time_s, &mut rng);
+            // The shaft speeds a millisecond before the fix, as a vessel
+            // sends them (the daemon benchmark's generator does the same).
+            let shafts = fleet.shafts(time_s - 1e-3, &mut rng);
             let fix = fleet.fix(v, time_s, elapsed_s, &mut rng);
             if v == 0 {
                 // The shadow twin takes what the daemon's takes; its
                 // rejections are the daemon's too (counted there).
                 let _ = shadow.on_propellers(&shafts);
-                let _ = shadow.on_gnss(&fix);
+                if let Err(e) = shadow.on_gnss(&fix) {
+                    shadow_rejected += 1;
+                    first_rejection.get_or_insert_with(|| (elapsed_s, format!("{e:?}")));
+                }
                 not_pd += u64::from(!covariances_ok(&shadow));
             }
             put(
@@ -211,7 +202,22 @@ pub fn run(opts: &SoakOptions) -> anyhow::Result<Vec<SoakRow>> {
         }
     });
     rt.shutdown_timeout(crate::daemon::load::CLOSE_LIMIT);
-    Ok(rows)
+    Ok(Soak {
+        rows,
+        shadow_rejected,
+        first_rejection,
+    })
+}
+
+/// What a soak found.
+#[derive(Debug, Clone)]
+pub struct Soak {
+    /// One row per hour of vessel time.
+    pub rows: Vec<SoakRow>,
+    /// Fixes the shadow twin (vessel 0's messages) rejected.
+    pub shadow_rejected: u64,
+    /// The shadow twin's first rejection: vessel time, s, and the reason.
+    pub first_rejection: Option<(f64, String)>,
 }
 
 fn put(
@@ -250,8 +256,7 @@ fn subscribe(session: &zenoh::Session, heard: &Arc<Mutex<Heard>>) -> anyhow::Res
             if let Ok(m) = serde_json::from_slice::<StatsMessage>(&s.payload().to_bytes())
                 && let Ok(mut h) = h.lock()
             {
-                let rejected = m.rejected.values().sum();
-                h.rejected.insert(m.vessel, rejected);
+                h.rejected.insert(m.vessel, m.rejected);
             }
         })
         .wait()
@@ -279,12 +284,14 @@ fn row(
     shadow: &VesselTwin,
 ) -> SoakRow {
     let (daemon, rejected, healthy) = match heard.lock() {
-        Ok(h) => (
-            h.daemon.clone(),
-            h.rejected.values().sum(),
-            h.healthy.clone(),
-        ),
-        Err(_) => (None, 0, None),
+        Ok(h) => {
+            let mut rejected = BTreeMap::new();
+            for (reason, n) in h.rejected.values().flatten() {
+                *rejected.entry(reason.clone()).or_insert(0) += n;
+            }
+            (h.daemon.clone(), rejected, h.healthy.clone())
+        }
+        Err(_) => (None, BTreeMap::new(), None),
     };
     SoakRow {
         hour,
@@ -316,7 +323,15 @@ fn row_text(r: &SoakRow) -> String {
         crate::core::thousands(received),
         crate::core::thousands(routed),
         refused,
-        r.rejected,
+        if r.rejected.is_empty() {
+            "0".to_string()
+        } else {
+            r.rejected
+                .iter()
+                .map(|(reason, n)| format!("{reason} {n}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        },
         opt(r.healthy_loss[0]),
         opt(r.healthy_loss[1]),
         r.not_positive_definite,
@@ -326,7 +341,8 @@ fn row_text(r: &SoakRow) -> String {
 }
 
 /// The rows as a Markdown table, with what was run.
-pub fn table(opts: &SoakOptions, rows: &[SoakRow]) -> String {
+pub fn table(opts: &SoakOptions, soak: &Soak) -> String {
+    let rows = &soak.rows;
     let mut out = String::new();
     let _ = writeln!(
         out,
@@ -344,6 +360,15 @@ pub fn table(opts: &SoakOptions, rows: &[SoakRow]) -> String {
         out.push_str(&row_text(r));
         out.push('\n');
     }
+    let _ = writeln!(
+        out,
+        "\nvessel 0's shadow twin rejected {} fixes; the first {}",
+        soak.shadow_rejected,
+        soak.first_rejection.as_ref().map_or_else(
+            || "-".to_string(),
+            |(t, reason)| format!("after {t:.1} s of vessel time: {reason}")
+        )
+    );
     let _ = writeln!(
         out,
         "\n{} cores ({}), load: {}",

@@ -153,7 +153,7 @@ pub fn point(vessels: usize, vessel_liveliness: bool) -> anyhow::Result<ColdStar
 
 /// Each vessel's (actuators, gnss) keys, declared to the generator's
 /// session (the vessels are separate programs: their keys' cost is theirs).
-fn declare_keys(
+pub(crate) fn declare_keys(
     session: &zenoh::Session,
     vessels: usize,
 ) -> anyhow::Result<Vec<[KeyExpr<'static>; 2]>> {
@@ -172,7 +172,7 @@ fn declare_keys(
 }
 
 /// Waits until the daemon's input subscription is visible.
-async fn wait_subscribed(session: &zenoh::Session) -> anyhow::Result<()> {
+pub(crate) async fn wait_subscribed(session: &zenoh::Session) -> anyhow::Result<()> {
     let probe = session
         .declare_publisher(format!("asv/{}/gnss", vessel_id(0)))
         .await
