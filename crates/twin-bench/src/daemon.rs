@@ -60,6 +60,7 @@
 //! machine whose load is printed beside them. Nothing here is asserted in a
 //! test: the test (`tests/daemon_load.rs`) checks the plumbing only.
 
+pub mod cold_start;
 pub mod flood;
 mod generator;
 pub mod histogram;

@@ -15,7 +15,10 @@
 //!   with the targets.
 //! - [`daemon`]: the `daemon` subcommand: twind under load against raw
 //!   Zenoh on loopback (throughput, latency, CPU, RSS, scaling, maximum
-//!   sustained rate), one table with the targets.
+//!   sustained rate), one table with the targets; `daemon::cold_start`,
+//!   the `cold-start` subcommand: a whole fleet starting at once.
+//! - [`soak`]: the `soak` subcommand: a fleet through the daemon for a day
+//!   of vessel time (memory, counts, drift, covariances).
 //! - [`machine`]: load average, cores, processor.
 //!
 //! The binary (`src/main.rs`) only parses the command line and calls these.
@@ -26,5 +29,6 @@ pub mod estimator;
 pub mod machine;
 pub mod numpy;
 pub mod rng;
+pub mod soak;
 pub mod trial;
 pub mod workloads;

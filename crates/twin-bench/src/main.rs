@@ -6,6 +6,8 @@
 //! cargo run --release -p twin-bench -- core      # estimator and offline path, with targets
 //! cargo run --release -p twin-bench -- daemon    # twind under load against raw Zenoh
 //! cargo run --release -p twin-bench -- flood     # a real vessel's latency under a flood of new ids
+//! cargo run --release -p twin-bench -- cold-start   # 1,000 / 3,000 / 10,000 vessels starting at once
+//! cargo run --release -p twin-bench -- soak     # a fleet through the daemon for 24 h of vessel time
 //! ```
 
 use std::path::PathBuf;
@@ -52,6 +54,89 @@ enum Bench {
     /// One point of `daemon`, run in a child process; prints one JSON line.
     #[command(hide = true)]
     DaemonPoint(DaemonPointArgs),
+    /// A whole fleet starting at once: the time from the first message to
+    /// the first fault of every vessel, for 1,000, 3,000 and 10,000
+    /// vessels (each sending a fix and its shaft speeds once a second).
+    ColdStart(ColdStartArgs),
+    /// One point of `cold-start`, run in a child process; prints one JSON line.
+    #[command(hide = true)]
+    ColdStartPoint(ColdStartPointArgs),
+    /// A fleet through the daemon for a day of vessel time at high speed:
+    /// every vessel-hour the memory, the counts received, refused and
+    /// rejected, a healthy vessel's loss estimates (drift from 0) and whether
+    /// the covariances stayed positive definite.
+    Soak(SoakArgs),
+}
+
+#[derive(Debug, Args)]
+struct SoakArgs {
+    /// Vessels.
+    #[arg(long, default_value_t = 2)]
+    vessels: usize,
+    /// Hours of vessel time.
+    #[arg(long, default_value_t = 24.0)]
+    hours: f64,
+    /// Fixes per second of vessel time, per vessel (a GNSS receiver's 10 Hz;
+    /// at 1 Hz the twin's gates reject many fixes of the benchmark's turn).
+    #[arg(long, default_value_t = 10.0)]
+    rate_hz: f64,
+}
+
+fn run_soak(args: SoakArgs) -> anyhow::Result<ExitCode> {
+    if cfg!(debug_assertions) {
+        eprintln!("warning: a debug build; the figures mean little (use --release)");
+    }
+    let opts = twin_bench::soak::SoakOptions {
+        vessels: args.vessels,
+        hours: args.hours,
+        rate_hz: args.rate_hz,
+    };
+    let soak = twin_bench::soak::run(&opts)?;
+    print!("{}", twin_bench::soak::table(&opts, &soak));
+    Ok(ExitCode::SUCCESS)
+}
+
+#[derive(Debug, Args)]
+struct ColdStartArgs {
+    /// Fleet sizes (comma-separated; default 1000,3000,10000).
+    #[arg(long, value_delimiter = ',')]
+    vessels: Option<Vec<usize>>,
+    /// Run the daemon with `publish.vessel_liveliness = false`.
+    #[arg(long)]
+    no_vessel_liveliness: bool,
+}
+
+#[derive(Debug, Args)]
+struct ColdStartPointArgs {
+    #[arg(long)]
+    vessels: usize,
+    #[arg(long)]
+    no_vessel_liveliness: bool,
+}
+
+fn run_cold_start(args: ColdStartArgs) -> anyhow::Result<ExitCode> {
+    if cfg!(debug_assertions) {
+        eprintln!("warning: a debug build; the figures mean little (use --release)");
+    }
+    let fleets = args
+        .vessels
+        .unwrap_or_else(|| twin_bench::daemon::cold_start::FLEETS.to_vec());
+    let table = twin_bench::daemon::cold_start::run(
+        &std::env::current_exe()?,
+        &fleets,
+        !args.no_vessel_liveliness,
+    )?;
+    print!("{table}");
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_cold_start_point(args: ColdStartPointArgs) -> anyhow::Result<ExitCode> {
+    let point = twin_bench::daemon::cold_start::point(args.vessels, !args.no_vessel_liveliness)?;
+    println!("{}", serde_json::to_string(&point)?);
+    use std::io::Write as _;
+    std::io::stdout().flush()?;
+    // Sessions still closing in the background: leave now.
+    std::process::exit(0);
 }
 
 #[derive(Debug, Args)]
@@ -346,6 +431,9 @@ fn main() -> ExitCode {
         Bench::Daemon(args) => run_daemon(args),
         Bench::Flood(args) => run_flood(args),
         Bench::DaemonPoint(args) => run_daemon_point(args),
+        Bench::ColdStart(args) => run_cold_start(args),
+        Bench::ColdStartPoint(args) => run_cold_start_point(args),
+        Bench::Soak(args) => run_soak(args),
     };
     // Printed here, once, without the backtrace anyhow would add under
     // RUST_BACKTRACE: these are setup errors, not bugs.

@@ -319,7 +319,8 @@ impl Router {
                 bytes: payload.to_bytes().into_owned(),
             }
         };
-        if route.inputs[slot].is_none() {
+        // Declared when the vessels' tokens are on (see `VesselTask::put`).
+        if route.inputs[slot].is_none() && settings.publish.vessel_liveliness {
             route.inputs[slot] = Some(declare_key(
                 &spawner.shared.session,
                 key.clone().into_owned(),
@@ -641,6 +642,7 @@ mod tests {
                         save_failures: crate::SaveFailures::default(),
                         ros2: None,
                         metrics: crate::metrics::Metrics::default(),
+                        fleet: crate::fleet::Fleet::solo(),
                     },
                     done_tx,
                 },

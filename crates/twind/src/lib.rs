@@ -8,6 +8,9 @@
 //!   through an embedded peer.
 //! - [`forecast`]: the forecast threads, off the fault path.
 //! - [`persist`]: calibration files saved and restored per vessel.
+//! - [`fleet`]: with `[fleet] enabled`, the election of each vessel's
+//!   active owner among the daemons sharing a fleet (hot standbys), and the
+//!   fleet's report of overlapping shares and vessels without an owner.
 //! - [`ros2`]: with `[ros2] enabled`, the outputs as ROS 2 messages and
 //!   GNSS input from ROS 2, over rmw_zenoh on the same session.
 //! - [`metrics`]: the Prometheus metrics (`GET /metrics`).
@@ -42,6 +45,7 @@
 
 pub mod demo;
 mod dispatch;
+pub mod fleet;
 pub mod forecast;
 pub mod metrics;
 pub mod notify;
@@ -92,6 +96,20 @@ impl LatestStates {
             // A poisoned map: a slot of its own, written but never read.
             Err(_) => StateSlot::default(),
         }
+    }
+
+    /// The vessels with a state, sorted.
+    pub fn vessels(&self) -> Vec<String> {
+        let mut ids: Vec<String> = match self.0.read() {
+            Ok(map) => map
+                .iter()
+                .filter(|(_, slot)| slot.0.lock().is_ok_and(|b| !b.is_empty()))
+                .map(|(id, _)| id.clone())
+                .collect(),
+            Err(_) => Vec::new(),
+        };
+        ids.sort();
+        ids
     }
 
     /// Every vessel's latest state, sorted by vessel; vessels without a
@@ -380,6 +398,9 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         &twin_wire::VesselId::new(&daemon_id)
             .map_err(|e| anyhow::anyhow!("the daemon's id {daemon_id:?}: {e}"))?,
     );
+    // In a fleet, the other daemons are known before anything is served.
+    let (fleet, fleet_membership) =
+        crate::fleet::join(&session, &settings, &daemon_id, shutdown.clone()).await?;
     // One queryable for the outputs kept (state, fault, alarm, finding).
     let outputs_key = format!("{}/{}/twin/*", settings.keys.prefix(), settings.vessels.own);
     let queryable = session
@@ -428,6 +449,7 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
                 save_failures: save_failures.clone(),
                 ros2,
                 metrics: metrics.clone(),
+                fleet: fleet.clone(),
             },
             done_tx,
         },
@@ -469,9 +491,16 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         queryable,
         latest.clone(),
         outputs.clone(),
-        settings.keys.clone(),
+        (settings.keys.clone(), fleet.clone()),
         shutdown.clone(),
     ));
+    // Without a token per vessel: one for the daemon, and its vessels on
+    // a queryable.
+    let daemon_presence = if settings.publish.vessel_liveliness {
+        None
+    } else {
+        Some(DaemonPresence::declare(&session, &settings, &daemon_id, latest.clone(), fleet).await?)
+    };
 
     let publish_daemon_stats = |dispatcher: &crate::dispatch::Dispatcher| {
         let message = dispatcher.daemon_stats(&daemon_id, save_failures.count());
@@ -546,6 +575,8 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
     }
     answer_latest.abort();
     drop(ros2_token);
+    drop(fleet_membership);
+    drop(daemon_presence);
     tracing::info!(
         received = summary.received,
         routed = summary.routed,
@@ -554,6 +585,67 @@ pub async fn run(config: RunConfig) -> anyhow::Result<RunSummary> {
         "twind stopped"
     );
     Ok(summary)
+}
+
+/// With `[publish] vessel_liveliness = false`: the daemon's one liveliness
+/// token, `{prefix}/@twind/{id}/alive`, and the queryable
+/// `{prefix}/@twind/{id}/vessels` that answers the vessels it publishes
+/// (JSON `{"daemon": id, "vessels": [ids]}`), in place of a token per
+/// vessel (docs/contracts.md: each vessel's token costs every session a
+/// walk of the fleet, and a fleet starting at once the square of its size).
+struct DaemonPresence {
+    _token: zenoh::liveliness::LivelinessToken,
+    answer: tokio::task::JoinHandle<()>,
+}
+
+impl DaemonPresence {
+    async fn declare(
+        session: &Session,
+        settings: &Settings,
+        daemon_id: &str,
+        latest: LatestStates,
+        fleet: crate::fleet::Fleet,
+    ) -> anyhow::Result<Self> {
+        let base = format!("{}/@twind/{daemon_id}", settings.keys.prefix());
+        let token = session
+            .liveliness()
+            .declare_token(format!("{base}/alive"))
+            .await
+            .map_err(|e| anyhow::anyhow!("cannot declare the daemon's token: {e}"))?;
+        let key = format!("{base}/vessels");
+        let queryable = session
+            .declare_queryable(&key)
+            .await
+            .map_err(|e| anyhow::anyhow!("cannot declare the queryable {key}: {e}"))?;
+        let daemon = daemon_id.to_string();
+        let answer = tokio::spawn(async move {
+            while let Ok(query) = queryable.recv_async().await {
+                let vessels: Vec<String> = latest
+                    .vessels()
+                    .into_iter()
+                    .filter(|v| fleet.is_active(v))
+                    .collect();
+                let body = serde_json::json!({ "daemon": daemon, "vessels": vessels });
+                if let Err(e) = query
+                    .reply(&key, body.to_string())
+                    .encoding(Encoding::APPLICATION_JSON)
+                    .await
+                {
+                    tracing::warn!("query not answered: {e}");
+                }
+            }
+        });
+        Ok(Self {
+            _token: token,
+            answer,
+        })
+    }
+}
+
+impl Drop for DaemonPresence {
+    fn drop(&mut self) {
+        self.answer.abort();
+    }
 }
 
 /// The next watchdog tick, or never when systemd does not watch.
@@ -572,7 +664,7 @@ async fn answer_latest_queries(
     queryable: zenoh::query::Queryable<zenoh::handlers::FifoChannelHandler<zenoh::query::Query>>,
     latest: LatestStates,
     outputs: LatestOutputs,
-    keys: twin_wire::KeySpace,
+    (keys, fleet): (twin_wire::KeySpace, crate::fleet::Fleet),
     shutdown: CancellationToken,
 ) {
     loop {
@@ -580,7 +672,12 @@ async fn answer_latest_queries(
             _ = shutdown.cancelled() => break,
             q = queryable.recv_async() => match q { Ok(q) => q, Err(_) => break },
         };
-        for (key, bytes) in latest_replies(&keys, &latest, &outputs, query.key_expr()) {
+        let replies = latest_replies(&keys, &latest, &outputs, query.key_expr());
+        // In a fleet, only the vessels this daemon is the active owner of.
+        for (vessel, key, bytes) in replies {
+            if !fleet.is_active(&vessel) {
+                continue;
+            }
             if let Err(e) = query
                 .reply(key, bytes)
                 .encoding(Encoding::APPLICATION_JSON)
@@ -593,13 +690,14 @@ async fn answer_latest_queries(
 }
 
 /// The replies to a query on `asked`: every kept output (latest state,
-/// fault, alarms, finding) whose key it intersects, as (key, payload).
+/// fault, alarms, finding) whose key it intersects, as (vessel, key,
+/// payload).
 fn latest_replies(
     keys: &twin_wire::KeySpace,
     latest: &LatestStates,
     outputs: &LatestOutputs,
     asked: &KeyExpr<'_>,
-) -> Vec<(String, Vec<u8>)> {
+) -> Vec<(String, String, Vec<u8>)> {
     let states = latest
         .snapshot()
         .into_iter()
@@ -614,7 +712,7 @@ fn latest_replies(
             let id = twin_wire::VesselId::new(&vessel).ok()?;
             let key = keys.key(&id, topic);
             let ke = KeyExpr::try_from(key.as_str()).ok()?;
-            asked.intersects(&ke).then_some((key, bytes))
+            asked.intersects(&ke).then_some((vessel, key, bytes))
         })
         .collect()
 }

@@ -71,6 +71,8 @@ struct RawSettings {
     #[serde(default)]
     ros2: crate::ros2::RawRos2,
     #[serde(default)]
+    fleet: crate::fleet::RawFleet,
+    #[serde(default)]
     signalk: Option<crate::signalk::RawSignalk>,
 }
 
@@ -348,6 +350,9 @@ pub struct Settings {
     pub diagnose: DiagnoseSettings,
     /// ROS 2 over rmw_zenoh (`crate::ros2`).
     pub ros2: crate::ros2::Ros2Settings,
+    /// Several daemons sharing a fleet: election and reports
+    /// (`crate::fleet`); off by default.
+    pub fleet: crate::fleet::FleetSettings,
     /// Vessel profiles, and which vessel uses which.
     pub profiles: ProfileSettings,
     /// The Signal K output (`[signalk]`), if on.
@@ -580,6 +585,7 @@ impl Settings {
             diagnose,
             profiles,
             ros2: crate::ros2::Ros2Settings::from_raw(raw.ros2)?,
+            fleet: crate::fleet::FleetSettings::from_raw(raw.fleet, &prefix)?,
             signalk: raw
                 .signalk
                 .map(crate::signalk::SignalkSettings::from_raw)

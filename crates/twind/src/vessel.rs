@@ -24,6 +24,7 @@
 //!   due meanwhile), a last state and fault, saves the calibration, and
 //!   ends; its liveliness token goes with it.
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
@@ -51,6 +52,7 @@ use zenoh::key_expr::KeyExpr;
 use zenoh::qos::CongestionControl;
 use zenoh::{Session, Wait};
 
+use crate::fleet::Fleet;
 use crate::forecast::{FaultPathLoad, ForecastJob, Forecaster};
 use crate::metrics::{Metrics, Update};
 use crate::persist;
@@ -211,6 +213,12 @@ pub struct VesselTask {
     ros2_node: Option<Arc<Ros2Node>>,
     /// ... and this vessel's ROS 2 publishers, declared at its first output.
     ros2: OnceLock<Option<VesselPublishers>>,
+    /// The fleet this daemon belongs to (alone: every vessel's owner)...
+    fleet: Fleet,
+    /// ... and whether it is this vessel's active owner, as of a generation
+    /// of the fleet's members (`generation << 1 | active`). A standby runs
+    /// the twin and publishes nothing.
+    role: AtomicU64,
 }
 
 /// The wall-clock instants the task's periodic work counts from.
@@ -296,6 +304,8 @@ pub struct VesselShared {
     pub ros2: Option<Arc<Ros2Node>>,
     /// The daemon's metrics (the fleet's counts, the estimator's time).
     pub metrics: Metrics,
+    /// Which vessels this daemon is the active owner of ([`crate::fleet`]).
+    pub fleet: Fleet,
 }
 
 impl VesselTask {
@@ -312,7 +322,9 @@ impl VesselTask {
             save_failures,
             ros2,
             metrics,
+            fleet,
         } = shared.clone();
+        let id_str = id.as_str().to_string();
         let (twin_config, profile) = settings.twin_for(id.as_str());
         let mut twin =
             VesselTwin::new(twin_config).expect("the settings' twin configuration was validated");
@@ -369,6 +381,10 @@ impl VesselTask {
             rearm_timer: false,
             ros2_node: ros2,
             ros2: OnceLock::new(),
+            role: AtomicU64::new(
+                fleet.generation() << 1 | u64::from(fleet.is_active(id_str.as_str())),
+            ),
+            fleet,
         }
     }
 
@@ -388,19 +404,15 @@ impl VesselTask {
                 return self.counters;
             }
         };
-        let token = if self.settings.publish.vessel_liveliness {
-            let token = self
-                .session
-                .liveliness()
-                .declare_token(self.settings.publish.liveliness_key(&keys, &self.id))
-                .await;
-            if let Err(e) = &token {
-                tracing::warn!(vessel = self.id.as_str(), "no liveliness token: {e}");
-            }
-            token.ok()
+        // Whether the task acts as the vessel's active owner (its token
+        // held), changed only in `on_fleet_change`.
+        let mut owning = self.active();
+        let mut token = if owning {
+            self.declare_token().await
         } else {
             None
         };
+        let mut roles = self.fleet.subscribe();
         // One timer, armed for the earliest thing that can fall due (the
         // stale state, the statistics, the save, the silence), rather than a
         // periodic tick: a vessel sending fixes wakes for it about once per
@@ -429,6 +441,9 @@ impl VesselTask {
                     if std::mem::take(&mut self.forecast_wanted) {
                         self.request_forecast();
                     }
+                }
+                Ok(()) = roles.changed() => {
+                    self.on_fleet_change(&mut owning, &mut token, &vessel_keys).await;
                 }
                 ev = rx.recv() => match ev {
                     Some(ev) => {
@@ -511,13 +526,91 @@ impl VesselTask {
     }
 
     /// Puts `bytes` on `key`, blocking when Zenoh's queues are full (nothing
-    /// the twin computed is dropped on the way out).
+    /// the twin computed is dropped on the way out). A standby puts nothing;
+    /// in a fleet every put carries the attachment `daemon=<id>`.
     async fn put(&self, key: &VesselKey, bytes: Vec<u8>) -> zenoh::Result<()> {
-        self.session
-            .put(key.declared(&self.session), bytes)
+        if !self.active() {
+            return Ok(());
+        }
+        // Declared only when the vessels' tokens are on: they are what
+        // makes an undeclared key's routing walk the fleet, and declaring a
+        // key walks it too (a fleet starting at once would cost the square
+        // of its size; `twin-bench cold-start`).
+        let key = if self.settings.publish.vessel_liveliness {
+            key.declared(&self.session)
+        } else {
+            &key.key
+        };
+        let put = self
+            .session
+            .put(key, bytes)
             .encoding(Encoding::APPLICATION_JSON)
-            .congestion_control(CongestionControl::Block)
-            .await
+            .congestion_control(CongestionControl::Block);
+        match self.fleet.daemon_id() {
+            Some(id) => put.attachment(format!("daemon={id}")).await,
+            None => put.await,
+        }
+    }
+
+    /// Whether this daemon is the vessel's active owner (always, alone).
+    fn active(&self) -> bool {
+        let role = self.role.load(Ordering::Relaxed);
+        let now = self.fleet.generation();
+        if now == role >> 1 {
+            return role & 1 == 1;
+        }
+        let active = self.fleet.is_active(self.id.as_str());
+        self.role
+            .store(now << 1 | u64::from(active), Ordering::Relaxed);
+        active
+    }
+
+    /// The vessel's `twin/alive` token, when the settings ask for one.
+    async fn declare_token(&self) -> Option<zenoh::liveliness::LivelinessToken> {
+        if !self.settings.publish.vessel_liveliness {
+            return None;
+        }
+        let key = self
+            .settings
+            .publish
+            .liveliness_key(&self.settings.keys, &self.id);
+        match self.session.liveliness().declare_token(key).await {
+            Ok(token) => Some(token),
+            Err(e) => {
+                tracing::warn!(vessel = self.id.as_str(), "no liveliness token: {e}");
+                None
+            }
+        }
+    }
+
+    /// The fleet's members changed: on becoming the active owner, the
+    /// vessel's token and its state and fault at once (from the twin kept
+    /// as a standby); on becoming a standby, the token goes.
+    async fn on_fleet_change(
+        &mut self,
+        owning: &mut bool,
+        token: &mut Option<zenoh::liveliness::LivelinessToken>,
+        p: &VesselKeys,
+    ) {
+        let now = self.active();
+        if now == *owning {
+            return;
+        }
+        *owning = now;
+        if now {
+            tracing::info!(
+                vessel = self.id.as_str(),
+                "taking over the vessel: this daemon is its active owner"
+            );
+            *token = self.declare_token().await;
+            self.publish_state_and_fault(p, self.stale_published).await;
+        } else {
+            tracing::info!(
+                vessel = self.id.as_str(),
+                "standing by: another daemon is the vessel's active owner"
+            );
+            *token = None;
+        }
     }
 
     fn save(&mut self) {
@@ -863,6 +956,9 @@ impl VesselTask {
 
     /// Hands an output to the in-process listeners (the web page), if any.
     fn tap_out(&self, topic: Topic, bytes: &[u8]) {
+        if !self.active() {
+            return;
+        }
         if let Some(tx) = &self.tap
             && tx.receiver_count() > 0
         {
@@ -928,6 +1024,9 @@ impl VesselTask {
     /// This vessel's ROS 2 publishers, declared on the first call; `None`
     /// when `[ros2]` is off (or Zenoh refused the keys, which is logged).
     fn ros2_publishers(&self) -> Option<&VesselPublishers> {
+        if !self.active() {
+            return None;
+        }
         let node = self.ros2_node.as_ref()?;
         self.ros2
             .get_or_init(|| {
