@@ -84,8 +84,8 @@ impl WaterBase {
         &self.filter
     }
 
-    /// `[north, east, sog, cog, heading, stw]`; position always, the rest
-    /// where measured, the course only above the gate's speed.
+    /// `[north, east, sog, cog, heading, stw]`, each where measured, the
+    /// course only above the gate's speed.
     pub fn measurement(&self, fix: &LocalFix) -> Measurement<6> {
         self.gate.measurement(fix, fix.stw_mps)
     }
