@@ -780,9 +780,14 @@ mod tests {
             let t = k as f64 * 0.25 + 0.003;
             assert!((fix.time_s - t).abs() < 1e-9);
             assert!((fix.cog_rad.unwrap() - (t - 0.003) * 0.01).abs() < 1e-12);
-            // The freshest heading, 0.002 s older than the course.
+            // The freshest heading: of the course's instant, or of the one
+            // before when no heading was sent at it (10 Hz against 20 Hz).
             let heading = fix.heading_rad.unwrap();
-            assert!((heading - (1.0 + (t - 0.003) * 0.01)).abs() < 1e-12);
+            let heading_i = 5 * k - (5 * k) % 2;
+            assert!(
+                (heading - (1.0 + heading_i as f64 * 0.05 * 0.01)).abs() < 1e-12,
+                "fix {k}: heading {heading}"
+            );
             assert_eq!(fix.yaw_rate_radps, Some(0.02));
         }
         assert_eq!(a.sources().0, None, "no position source");

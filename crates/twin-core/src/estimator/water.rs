@@ -189,9 +189,10 @@ mod tests {
             }
         };
         let first = fix_at(0.0);
-        assert_eq!(base.measurement(&first).available, [
-            false, false, true, true, true, true
-        ]);
+        assert_eq!(
+            base.measurement(&first).available,
+            [false, false, true, true, true, true]
+        );
         let mut state = base.prior(&first);
         for k in 1..=4 * 3600 {
             let report = base.step(&mut state, &fix_at(f64::from(k)), 1.0).unwrap();
