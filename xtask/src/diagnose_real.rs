@@ -6,9 +6,10 @@
 //! drift (NMEA 2000 PGN 130577), the current estimate beside it with their
 //! difference.
 //!
-//! Files in no log format (README, licences) are skipped; a log with too few
-//! position fixes to diagnose gets a row that says so; every other failure
-//! is an error. Logs are taken in name order.
+//! Files in no log format (README, licences) are skipped; a log without
+//! positions is diagnosed from its velocities (its model column says so);
+//! a log with too few fixes to diagnose gets a row that says so; every other
+//! failure is an error. Logs are taken in name order.
 
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
@@ -43,7 +44,7 @@ pub enum DiagnoseRealError {
 pub enum LogOutcome {
     /// Diagnosed.
     Diagnosed(Box<DiagnoseReport>),
-    /// Too few position fixes (the log has no position records).
+    /// Too few fixes (or, without positions, course/speed records).
     TooFewFixes,
 }
 
@@ -136,6 +137,9 @@ fn gain_text(f: &FindingJson) -> String {
             h.horizon_s, h.before, h.after
         );
     }
+    if g.prediction_rmse_m.is_empty() {
+        s.push_str("; forecast RMSE - (no positions)");
+    }
     s
 }
 
@@ -157,6 +161,7 @@ pub fn instrument_comparison(r: &DiagnoseReport) -> Option<([f64; 2], [f64; 2], 
 /// The base model, the steps and what the log measured.
 fn model_text(r: &DiagnoseReport) -> String {
     let measured: Vec<&str> = [
+        (!r.measured.position, "no positions: SOG/COG"),
         (r.measured.heading, "heading"),
         (r.measured.speed_through_water, "STW"),
         (r.measured.propellers, "propellers"),
@@ -190,7 +195,7 @@ pub fn markdown(logs: &[(String, LogOutcome)]) -> String {
             LogOutcome::TooFewFixes => {
                 let _ = writeln!(
                     s,
-                    "| {name} | - | no position records: nothing to diagnose | - | - |"
+                    "| {name} | - | too few fixes or course/speed records: nothing to diagnose | - | - |"
                 );
                 continue;
             }

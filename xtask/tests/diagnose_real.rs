@@ -3,7 +3,8 @@
 //! agrees with the instrument's own set and drift (PGN 130577, an
 //! independent estimate the diagnosis never reads) within 0.1 m/s as a
 //! vector; the 4-hour `plaka.log`, which the nominal model explains, gets no
-//! finding; the logs without position records say so.
+//! finding; the two logs without position records are diagnosed from their
+//! velocities (one step per COG/SOG message, no cause that needs positions).
 
 use std::path::Path;
 
@@ -45,8 +46,47 @@ fn the_real_logs_are_diagnosed_and_the_current_matches_the_instrument() {
     );
     assert!(report("plaka.log").findings.is_empty());
     for name in ["furuno-130842.raw", "furuno-130842-accel.raw"] {
-        let outcome = &logs.iter().find(|(n, _)| n == name).unwrap().1;
-        assert!(matches!(outcome, LogOutcome::TooFewFixes), "{name}");
+        let r = report(name);
+        // One step per COG/SOG message (PGN 129026), counted in the text.
+        let text = std::fs::read_to_string(dir.join(name)).unwrap();
+        let courses = text.lines().filter(|l| l.contains(",129026,")).count();
+        assert!(courses > 800, "{name}: {courses} COG/SOG messages");
+        assert!(
+            r.steps <= courses && r.steps * 100 >= courses * 98,
+            "{name}: {} steps from {courses} COG/SOG messages",
+            r.steps
+        );
+        assert_eq!(r.base_model, "water", "{name}");
+        assert!(!r.measured.position, "{name}");
+        assert!(
+            r.measured.heading && r.measured.speed_through_water,
+            "{name}"
+        );
+        let tried = r
+            .findings
+            .iter()
+            .map(|f| f.cause.as_str())
+            .chain(r.rejected.iter().map(|c| c.cause));
+        for cause in tried {
+            assert!(
+                !["gnss_latency", "lever_arm"].contains(&cause),
+                "{name}: {cause} needs positions"
+            );
+        }
+        assert!(
+            r.findings
+                .iter()
+                .all(|f| f.gain.prediction_rmse_m.is_empty()),
+            "{name}: no forecast without positions"
+        );
+    }
+    for (name, outcome) in &logs {
+        if let LogOutcome::Diagnosed(r) = outcome {
+            assert!(
+                !serde_json::to_string(r).unwrap().contains("NaN"),
+                "{name}: JSON has no NaN"
+            );
+        }
     }
     let md = markdown(&logs);
     for name in names {

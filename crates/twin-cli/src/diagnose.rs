@@ -10,14 +10,17 @@
 //! log             the path given
 //! base_model      "kinetic" (the Otter's twin, propeller data) | "water" (kinematic, any vessel)
 //! steps, training_steps, heldout_steps
-//! measured        {heading, speed_through_water, propellers}: what the log has
+//! measured        {heading, speed_through_water, propellers, position}: what the log has;
+//!                 position false: no position records, the steps are the course/speed
+//!                 instants and only the velocities are diagnosed
 //! nominal         residuals of the nominal model on the held-out part (below)
 //! extended        the same with every finding
 //! findings        [{cause, parameters {name: value | "port"/"starboard"},
 //!                   uncertainty {name: standard deviation},
 //!                   evidence [text], gain {heldout_nll_gain, heldout_steps,
 //!                   nis_per_dof {before, after}, prediction_rmse_m [{horizon_s, before, after}]}}]
-//!                 an empty list when the nominal model explains the data
+//!                 an empty list when the nominal model explains the data;
+//!                 prediction_rmse_m is empty without positions (nothing to forecast against)
 //! rejected        [{cause, parameters, heldout_nll_gain, reason}]: tried, not reported
 //! unexplained     {nis_per_dof, biased [{component, bias_z}]} when the findings leave
 //!                 the held-out residuals well outside what the filter expects, else null
@@ -80,7 +83,9 @@ pub enum DiagnoseError {
         source: twin_wire::read::OpenError,
     },
     /// The log has too few usable fixes.
-    #[error("{path}: too few usable GNSS fixes to diagnose (at least 10 are needed)")]
+    #[error(
+        "{path}: too few usable GNSS fixes (or, without positions, course/speed records) to diagnose (at least 10 are needed)"
+    )]
     TooShort {
         /// The log.
         path: PathBuf,
@@ -111,11 +116,19 @@ pub fn load(
         position_source: source,
         ..AssemblerConfig::default()
     });
+    // The time line of the log's course/speed instants, used when it has no
+    // positions at all.
+    let mut velocities = FixAssembler::new(AssemblerConfig {
+        fixes_at_course: true,
+        ..AssemblerConfig::default()
+    });
     let mut events = Vec::new();
+    let mut velocity_fixes = Vec::new();
     let mut out = Vec::new();
     let mut set_drift = ([0.0f64; 2], 0usize);
     for item in reader {
         let Ok(record) = item else { continue };
+        velocities.push(record, &mut velocity_fixes);
         match record.measurement {
             Measurement::SpeedThroughWater { mps } => events.push(DiagEvent::SpeedThroughWater {
                 time_s: record.time_s,
@@ -138,6 +151,13 @@ pub fn load(
     assembler.finish(&mut out);
     for a in out.drain(..) {
         push_assembled(&mut events, a);
+    }
+    if !events.iter().any(|e| matches!(e, DiagEvent::Fix(_))) {
+        velocities.finish(&mut velocity_fixes);
+        events.extend(velocity_fixes.into_iter().filter_map(|a| match a {
+            Assembled::Fix(f) => Some(DiagEvent::Velocity(f)),
+            _ => None,
+        }));
     }
     let instrument_current = (set_drift.1 > 0).then(|| {
         let n = set_drift.1 as f64;
@@ -243,6 +263,8 @@ pub struct MeasuredJson {
     pub speed_through_water: bool,
     /// Propeller speeds.
     pub propellers: bool,
+    /// Positions (else the velocities alone are diagnosed).
+    pub position: bool,
 }
 
 /// The whole report (`--json`).
@@ -311,6 +333,7 @@ pub fn diagnose_loaded(
             heading: prep.has_heading,
             speed_through_water: prep.has_stw,
             propellers: prep.has_propellers,
+            position: prep.has_position,
         },
         nominal: residuals_json(&d.nominal),
         extended: residuals_json(&d.extended),
@@ -397,7 +420,11 @@ fn write_finding(o: &mut String, i: usize, f: &FindingJson) {
         g.heldout_nll_gain,
         g.nis_per_dof.before,
         g.nis_per_dof.after,
-        rmse.join(", ")
+        if rmse.is_empty() {
+            "- (no positions)".to_string()
+        } else {
+            rmse.join(", ")
+        }
     );
 }
 
@@ -422,8 +449,11 @@ pub fn render_text(r: &DiagnoseReport) -> String {
     );
     let _ = writeln!(
         o,
-        "  measured     heading {}, speed through water {}, propellers {}",
-        r.measured.heading, r.measured.speed_through_water, r.measured.propellers
+        "  measured     position {}, heading {}, speed through water {}, propellers {}",
+        r.measured.position,
+        r.measured.heading,
+        r.measured.speed_through_water,
+        r.measured.propellers
     );
     let n = &r.nominal;
     let _ = writeln!(

@@ -45,6 +45,13 @@
 //! window locks onto the first source that sends it later.
 //! [`SourceChoice::Fixed`] names the position source instead.
 //!
+//! # Logs without positions
+//! With `fixes_at_course` the assembler builds the time line of a log that
+//! has course/speed but no positions (the Furuno trials without PGN 129025):
+//! positions are ignored, and every course/speed record of the chosen
+//! course source opens a fix at its own time whose position is not measured
+//! (NaN). Heading and yaw rate join it as they join a position fix.
+//!
 //! # Propellers
 //! A port and a starboard speed within `pair_window_s` (default 0.25 s) of
 //! each other make one [`PropellerSpeeds`] at the later time; each sample is
@@ -93,6 +100,9 @@ pub struct AssemblerConfig {
     pub drop_repeated_positions: bool,
     /// How long after a position an equal one counts as re-sent, seconds.
     pub repeat_window_s: f64,
+    /// Ignore positions and open a fix, its position NaN (not measured), at
+    /// every course/speed record: the time line of a log without positions.
+    pub fixes_at_course: bool,
 }
 
 impl Default for AssemblerConfig {
@@ -107,6 +117,7 @@ impl Default for AssemblerConfig {
             max_yaw_rate_age_s: 0.5,
             drop_repeated_positions: true,
             repeat_window_s: 2.0,
+            fixes_at_course: false,
         }
     }
 }
@@ -329,6 +340,7 @@ impl FixAssembler {
             };
             let tally = &mut tallies[i].1;
             match record.measurement {
+                Measurement::Position { .. } if self.config.fixes_at_course => {}
                 Measurement::Position { method, .. } => {
                     tally.positions += 1;
                     let rank = FixMethod::rank(method);
@@ -430,6 +442,7 @@ impl FixAssembler {
         }
         let heading = self.heading_of(&record.measurement);
         match record.measurement {
+            Measurement::Position { .. } if self.config.fixes_at_course => {}
             Measurement::Position {
                 lat_deg,
                 lon_deg,
@@ -440,6 +453,13 @@ impl FixAssembler {
                 if !Self::accepts(&mut self.course_source, record.source) {
                     self.stats.courses_other_sources += 1;
                     return;
+                }
+                if self.config.fixes_at_course {
+                    let unmeasured = LatLon {
+                        lat_deg: f64::NAN,
+                        lon_deg: f64::NAN,
+                    };
+                    self.open_fix(record.time_s, unmeasured, None);
                 }
                 if self.course.is_some() {
                     self.stats.courses_unused += 1;
@@ -518,8 +538,20 @@ impl FixAssembler {
             return;
         }
         self.last_position = Some((record.time_s, lat_deg, lon_deg));
+        self.open_fix(record.time_s, position, hdop);
+    }
+
+    /// Starts the pending fix at `time_s`, unless it is not after the
+    /// previous fix (dropped and counted).
+    fn open_fix(&mut self, time_s: f64, position: LatLon, hdop: Option<f64>) {
+        let not_after = self.last_fix_s.is_some_and(|t| time_s <= t)
+            || self.pending.is_some_and(|p| time_s <= p.time_s);
+        if not_after {
+            self.stats.positions_not_after_previous += 1;
+            return;
+        }
         self.pending = Some(GnssFix {
-            time_s: record.time_s,
+            time_s,
             position,
             sog_mps: None,
             cog_rad: None,
@@ -706,6 +738,67 @@ mod tests {
         assert_eq!(f[5].cog_rad, Some(0.04));
         assert_eq!(a.stats().fixes_with_course, 20);
         assert!(f.windows(2).all(|w| w[1].time_s > w[0].time_s));
+    }
+
+    #[test]
+    fn without_positions_every_course_opens_a_fix_with_heading_and_yaw_rate() {
+        // COG/SOG at 4 Hz from source 25, heading at 10 Hz and yaw rate at
+        // 20 Hz from source 27, and a few positions that must be ignored.
+        let mut records = Vec::new();
+        for i in 0..200 {
+            let t = i as f64 * 0.05;
+            if i % 2 == 0 {
+                records.push(rec(
+                    t + 0.001,
+                    Source::N2k(27),
+                    Measurement::Heading {
+                        heading_rad: 1.0 + t * 0.01,
+                    },
+                ));
+            }
+            records.push(rec(
+                t + 0.002,
+                Source::N2k(27),
+                Measurement::RateOfTurn { radps: 0.02 },
+            ));
+            if i % 5 == 0 {
+                records.push(course(t + 0.003, 25, t * 0.01));
+            }
+            if i % 40 == 0 {
+                records.push(pos(t + 0.004, 25, None));
+            }
+        }
+        let config = AssemblerConfig {
+            fixes_at_course: true,
+            ..AssemblerConfig::default()
+        };
+        let (out, a) = run(records, config);
+        let f = fixes(&out);
+        assert_eq!(f.len(), 40, "one fix per course record, none per position");
+        assert!(f.iter().all(|f| f.position.lat_deg.is_nan()));
+        for (k, fix) in f.iter().enumerate() {
+            let t = k as f64 * 0.25 + 0.003;
+            assert!((fix.time_s - t).abs() < 1e-9);
+            assert!((fix.cog_rad.unwrap() - (t - 0.003) * 0.01).abs() < 1e-12);
+            // The freshest heading: of the course's instant, or of the one
+            // before when no heading was sent at it (10 Hz against 20 Hz).
+            let heading = fix.heading_rad.unwrap();
+            let heading_i = 5 * k - (5 * k) % 2;
+            assert!(
+                (heading - (1.0 + heading_i as f64 * 0.05 * 0.01)).abs() < 1e-12,
+                "fix {k}: heading {heading}"
+            );
+            assert_eq!(fix.yaw_rate_radps, Some(0.02));
+        }
+        assert_eq!(a.sources().0, None, "no position source");
+        assert_eq!(a.stats().fixes_with_heading, 40);
+        // The same records without the option: fixes only at the positions.
+        let mut plain = Vec::new();
+        for i in 0..5 {
+            plain.push(pos(i as f64 * 2.0, 25, None));
+        }
+        let (out, _) = run(plain, AssemblerConfig::default());
+        assert_eq!(fixes(&out).len(), 5);
     }
 
     #[test]

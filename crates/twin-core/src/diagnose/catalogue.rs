@@ -100,6 +100,8 @@ impl Cause {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) struct LogKind {
     pub base: BaseModel,
+    /// Whether the log has positions (else only its velocities are seen).
+    pub has_position: bool,
     pub has_heading: bool,
     pub has_stw: bool,
 }
@@ -365,7 +367,8 @@ static SOG_SCALE: CauseSpec = CauseSpec {
 static GNSS_LATENCY: CauseSpec = CauseSpec {
     name: "gnss_latency",
     must_improve_forecast: false,
-    applies: always,
+    // Seen in the fixes' positions against the vessel's motion.
+    applies: |log| log.has_position,
     // A fix is stamped at or after the instant it describes, never before:
     // a latency is physically in [0, 2] s.
     search: Search::Scalar(ScalarSearch {
@@ -384,7 +387,8 @@ static LEVER_ARM: CauseSpec = CauseSpec {
     name: "lever_arm",
     must_improve_forecast: false,
     // The water base needs a heading to turn a body offset into the fix's.
-    applies: |log| log.base == BaseModel::Kinetic || log.has_heading,
+    // Seen in the fixes' positions as the hull turns.
+    applies: |log| log.has_position && (log.base == BaseModel::Kinetic || log.has_heading),
     search: Search::Plane(PlaneSearch {
         parameters: ["x_m", "y_m"],
         // Three quarters of the hull's length: a mast at the bow or the
@@ -441,7 +445,7 @@ static SIDESLIP: CauseSpec = CauseSpec {
 const fn profile_scale(name: &'static str, set: fn(&mut Hypothesis, f64)) -> CauseSpec {
     CauseSpec {
         name,
-        applies: kinetic_only,
+        applies: kinetic_with_positions,
         must_improve_forecast: true,
         search: Search::Scalar(ScalarSearch {
             parameter: "scale",
@@ -456,8 +460,10 @@ const fn profile_scale(name: &'static str, set: fn(&mut Hypothesis, f64)) -> Cau
     }
 }
 
-fn kinetic_only(log: &LogKind) -> bool {
-    log.base == BaseModel::Kinetic
+/// A cause of the vessel's dynamics is judged on the held-out position
+/// forecast: it needs the kinetic base and positions.
+fn kinetic_with_positions(log: &LogKind) -> bool {
+    log.base == BaseModel::Kinetic && log.has_position
 }
 
 static SURGE_DAMPING: CauseSpec = profile_scale("surge_damping", |h, v| h.profile_scales[0] = v);
@@ -471,13 +477,16 @@ mod tests {
     fn kinds() -> Vec<LogKind> {
         let mut v = Vec::new();
         for base in [BaseModel::Kinetic, BaseModel::Water] {
-            for has_heading in [false, true] {
-                for has_stw in [false, true] {
-                    v.push(LogKind {
-                        base,
-                        has_heading,
-                        has_stw,
-                    });
+            for has_position in [false, true] {
+                for has_heading in [false, true] {
+                    for has_stw in [false, true] {
+                        v.push(LogKind {
+                            base,
+                            has_position,
+                            has_heading,
+                            has_stw,
+                        });
+                    }
                 }
             }
         }
@@ -537,7 +546,8 @@ mod tests {
         for kind in kinds() {
             let applies = |c: Cause| c.applies(&kind);
             assert!(applies(Cause::Current) && applies(Cause::SogScale));
-            assert!(applies(Cause::GnssLatency));
+            // The fixes' timing and the antenna's offset show in positions.
+            assert_eq!(applies(Cause::GnssLatency), kind.has_position);
             assert_eq!(
                 applies(Cause::ThrusterLoss),
                 kind.base == BaseModel::Kinetic
@@ -553,10 +563,15 @@ mod tests {
             );
             assert_eq!(
                 applies(Cause::LeverArm),
-                kind.base == BaseModel::Kinetic || kind.has_heading
+                kind.has_position && (kind.base == BaseModel::Kinetic || kind.has_heading)
             );
+            // Judged on the held-out position forecast.
             for c in [Cause::SurgeDamping, Cause::YawDamping, Cause::Mass] {
-                assert_eq!(applies(c), kind.base == BaseModel::Kinetic, "{c:?}");
+                assert_eq!(
+                    applies(c),
+                    kind.base == BaseModel::Kinetic && kind.has_position,
+                    "{c:?}"
+                );
             }
         }
     }

@@ -857,6 +857,7 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     };
     let log = LogKind {
         base,
+        has_position: prep.has_position,
         has_heading: prep.has_heading,
         has_stw: prep.has_stw,
     };

@@ -125,7 +125,7 @@ pub struct LiveMonitor {
 
 fn event_time_s(e: &DiagEvent) -> f64 {
     match e {
-        DiagEvent::Fix(f) => f.time_s,
+        DiagEvent::Fix(f) | DiagEvent::Velocity(f) => f.time_s,
         DiagEvent::SpeedThroughWater { time_s, .. } => *time_s,
         DiagEvent::Propellers(p) => p.time_s,
     }

@@ -326,13 +326,14 @@ fn drive<B, const N: usize, const M: usize, const P: usize>(
 where
     B: PassBase<N, M, P>,
 {
+    // Forecasts are scored on measured positions: none without them.
+    let horizons_s: &[f64] = if prep.has_position {
+        &opts.config.horizons_s
+    } else {
+        &[]
+    };
     let mut out = PassOut {
-        forecast: opts
-            .config
-            .horizons_s
-            .iter()
-            .map(|h| (*h, 0.0, 0))
-            .collect(),
+        forecast: horizons_s.iter().map(|h| (*h, 0.0, 0)).collect(),
         ..PassOut::default()
     };
     let steps = &prep.steps;
@@ -393,7 +394,7 @@ where
             }
             out.records.push(rec);
         }
-        if step.time_s >= next_forecast_s && !opts.config.horizons_s.is_empty() {
+        if step.time_s >= next_forecast_s && !out.forecast.is_empty() {
             next_forecast_s = step.time_s + opts.config.forecast_every_s;
             score_forecasts(base, prep, &inputs, k, &state, &mut out.forecast);
         }

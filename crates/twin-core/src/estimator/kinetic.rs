@@ -460,8 +460,8 @@ impl KineticBase {
         &self.options
     }
 
-    /// `[north, east, sog, cog, heading, yaw rate]`; position always, the
-    /// rest where measured, the course only above the gate's speed.
+    /// `[north, east, sog, cog, heading, yaw rate]`, each where measured,
+    /// the course only above the gate's speed.
     pub fn measurement(&self, fix: &LocalFix) -> Measurement<MEASUREMENTS> {
         self.gate.measurement(fix, fix.yaw_rate_radps)
     }

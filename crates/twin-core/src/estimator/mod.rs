@@ -40,8 +40,12 @@ use crate::sample::GnssFix;
 pub struct LocalFix {
     /// Time, s.
     pub time_s: f64,
-    /// Antenna position in the local frame.
+    /// Antenna position in the local frame (the frame's origin when not
+    /// measured).
     pub position: NorthEast,
+    /// Whether the position was measured: false on a log without positions,
+    /// whose velocities alone are diagnosed.
+    pub position_measured: bool,
     /// Speed over ground, m/s.
     pub sog_mps: Option<f64>,
     /// Course over ground, rad (not yet gated by speed: see [`CourseGate`]).
@@ -65,6 +69,7 @@ impl LocalFix {
         Self {
             time_s: fix.time_s,
             position,
+            position_measured: true,
             sog_mps: fix.sog_mps,
             cog_rad: fix.cog_rad.map(wrap_pi),
             heading_rad: fix.heading_rad.map(wrap_pi),
@@ -87,8 +92,8 @@ impl CourseGate {
         fix.cog_rad.is_some() && fix.sog_mps.is_some_and(|s| s >= self.min_sog_mps)
     }
 
-    /// `[north, east, sog, cog, heading, extra]` from `fix`: position
-    /// always, the rest where measured, the course only above the gate's
+    /// `[north, east, sog, cog, heading, extra]` from `fix`: each where
+    /// measured, the course only above the gate's
     /// speed; `extra` is the base's own sixth measurement (the yaw rate,
     /// the speed through water), where the fix has it.
     pub fn measurement(&self, fix: &LocalFix, extra: Option<f64>) -> crate::model::Measurement<6> {
@@ -102,8 +107,8 @@ impl CourseGate {
                 extra.unwrap_or(0.0),
             ]),
             available: [
-                true,
-                true,
+                fix.position_measured,
+                fix.position_measured,
                 fix.sog_mps.is_some(),
                 self.course_available(fix),
                 fix.heading_rad.is_some(),

@@ -72,8 +72,8 @@ impl SeedBase {
         &self.filter
     }
 
-    /// `[north, east, sog, cog]`; position always, the rest where measured,
-    /// the course only above the gate's speed.
+    /// `[north, east, sog, cog]`, each where measured, the course only
+    /// above the gate's speed.
     pub fn measurement(&self, fix: &LocalFix) -> Measurement<4> {
         Measurement {
             values: Vector4::new(
@@ -83,8 +83,8 @@ impl SeedBase {
                 fix.cog_rad.unwrap_or(0.0),
             ),
             available: [
-                true,
-                true,
+                fix.position_measured,
+                fix.position_measured,
                 fix.sog_mps.is_some(),
                 self.gate.course_available(fix),
             ],

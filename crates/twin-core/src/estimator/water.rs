@@ -84,8 +84,8 @@ impl WaterBase {
         &self.filter
     }
 
-    /// `[north, east, sog, cog, heading, stw]`; position always, the rest
-    /// where measured, the course only above the gate's speed.
+    /// `[north, east, sog, cog, heading, stw]`, each where measured, the
+    /// course only above the gate's speed.
     pub fn measurement(&self, fix: &LocalFix) -> Measurement<6> {
         self.gate.measurement(fix, fix.stw_mps)
     }
@@ -148,5 +148,60 @@ impl WaterBase {
         dt_s: f64,
     ) -> Result<StepReport<6, 0>, AekfError> {
         self.filter.step(state, &(), &self.measurement(fix), dt_s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geodesy::NorthEast;
+
+    /// Four hours of velocities without a position at 1 Hz, turning slowly
+    /// in a 0.3 m/s current: the unobserved position's variance grows, and
+    /// the filter stays finite and keeps the speed, heading and current.
+    #[test]
+    fn without_positions_the_filter_stays_well_conditioned() {
+        let options = WaterOptions {
+            effects: SensorEffects::default(),
+            stw_scale: 1.0,
+            sideslip_m: 0.0,
+            current: Term::Free,
+            process_noise: [1e-4, 1e-4, 1e-6, 1e-2, 1e-4, 1e-6, 1e-6],
+            measurement_sigma: [0.5, 0.1, 0.05, 1f64.to_radians(), 0.1],
+        };
+        let base = WaterBase::new(&options, CourseGate { min_sog_mps: 0.5 }).unwrap();
+        let (u, current) = (2.0, [0.3, 0.0]);
+        let fix_at = |t: f64| {
+            let psi = crate::geodesy::wrap_pi(0.01 * t);
+            let (n, e) = (u * psi.cos() + current[0], u * psi.sin() + current[1]);
+            LocalFix {
+                time_s: t,
+                position: NorthEast {
+                    north_m: 0.0,
+                    east_m: 0.0,
+                },
+                position_measured: false,
+                sog_mps: Some(n.hypot(e)),
+                cog_rad: Some(e.atan2(n)),
+                heading_rad: Some(psi),
+                yaw_rate_radps: Some(0.01),
+                stw_mps: Some(u),
+            }
+        };
+        let first = fix_at(0.0);
+        assert_eq!(
+            base.measurement(&first).available,
+            [false, false, true, true, true, true]
+        );
+        let mut state = base.prior(&first);
+        for k in 1..=4 * 3600 {
+            let report = base.step(&mut state, &fix_at(f64::from(k)), 1.0).unwrap();
+            assert!(report.nis.is_finite(), "step {k}");
+        }
+        assert!(state.p.iter().all(|v| v.is_finite()));
+        assert!(state.p[(idx::NORTH, idx::NORTH)] > 100.0, "unobserved");
+        assert!((state.x[idx::U] - u).abs() < 0.05);
+        assert!((state.x[idx::CURRENT_NORTH] - current[0]).abs() < 0.05);
+        assert!((state.x[idx::CURRENT_EAST] - current[1]).abs() < 0.05);
     }
 }
