@@ -589,7 +589,11 @@ impl KineticBase {
                 if self.options.losses == Term::Free
                     && self.options.profile_errors == Term::Free =>
             {
-                let mut state = AekfState::new(config, x0, p0, r.theta);
+                // A calibration learnt before the bounds held may lie
+                // beyond them.
+                let mut theta = r.theta;
+                hold_profile_errors(&mut theta);
+                let mut state = AekfState::new(config, x0, p0, theta);
                 state.s = r.covariance;
                 state.held_information = r.held_information;
                 state
@@ -797,9 +801,8 @@ impl ShaftAccumulator {
 mod tests {
     use super::*;
 
-    /// A state whose profile errors have wandered past their bounds (a
-    /// vanishing mass, a negative resistance) steps to a finite state with
-    /// the errors held at the bounds.
+    /// A state whose profile errors have wandered past their bounds steps
+    /// to a finite state with the errors held within them.
     #[test]
     fn profile_errors_are_held_within_their_bounds() {
         let config = KineticConfig::otter();
@@ -820,12 +823,13 @@ mod tests {
             heading_rad: Some(0.0),
             yaw_rate_radps: Some(0.0),
             stw_mps: None,
+            position_measured: true,
         };
         let mut state = base.prior(&fix(0.0), None);
         state.x[idx::U] = 1.5;
-        state.theta[fault::MASS] = -0.99;
-        state.theta[fault::SURGE_DAMPING] = -1.2;
-        state.theta[fault::YAW_DAMPING] = 3.0;
+        state.theta[fault::MASS] = -0.7;
+        state.theta[fault::SURGE_DAMPING] = -0.6;
+        state.theta[fault::YAW_DAMPING] = 1.5;
         let input = ShaftSpeeds {
             port_radps: 60.0,
             starboard_radps: 60.0,
