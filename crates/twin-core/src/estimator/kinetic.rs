@@ -316,29 +316,6 @@ impl KineticOptions {
     }
 }
 
-/// The relative errors of the profile (surge damping, yaw damping, thrust
-/// coefficients, mass) the twin holds: a vessel from half to twice its
-/// profile. The thrust, the mass and the damping scaled together move the
-/// vessel alike (docs/model.md section 8), so along that direction the data
-/// cannot stop the estimates from wandering; held here, the model never
-/// divides by a vanishing mass or damps with a negative resistance. A
-/// vessel further from its profile needs its own (`twin identify`).
-pub const PROFILE_ERROR_BOUNDS: (f64, f64) = (-0.5, 1.0);
-
-/// Holds the profile's errors of `theta` within [`PROFILE_ERROR_BOUNDS`]
-/// (a projection of the estimate onto them; the covariance is kept).
-fn hold_profile_errors(theta: &mut SVector<f64, FAULTS>) {
-    let (lo, hi) = PROFILE_ERROR_BOUNDS;
-    for i in [
-        fault::SURGE_DAMPING,
-        fault::YAW_DAMPING,
-        fault::THRUST,
-        fault::MASS,
-    ] {
-        theta[i] = theta[i].clamp(lo, hi);
-    }
-}
-
 /// The kinetic base.
 #[derive(Debug, Clone)]
 pub struct KineticBase {
@@ -589,11 +566,7 @@ impl KineticBase {
                 if self.options.losses == Term::Free
                     && self.options.profile_errors == Term::Free =>
             {
-                // A calibration learnt before the bounds held may lie
-                // beyond them.
-                let mut theta = r.theta;
-                hold_profile_errors(&mut theta);
-                let mut state = AekfState::new(config, x0, p0, theta);
+                let mut state = AekfState::new(config, x0, p0, r.theta);
                 state.s = r.covariance;
                 state.held_information = r.held_information;
                 state
@@ -621,7 +594,6 @@ impl KineticBase {
         if self.options.heading_bias == Term::Off {
             state.x[idx::HEADING_BIAS] = 0.0;
         }
-        hold_profile_errors(&mut state.theta);
         Ok(report)
     }
 
@@ -800,63 +772,6 @@ impl ShaftAccumulator {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A state whose profile errors have wandered past their bounds steps
-    /// to a finite state with the errors held within them.
-    #[test]
-    fn profile_errors_are_held_within_their_bounds() {
-        let config = KineticConfig::otter();
-        let base = KineticBase::new(
-            &config,
-            CourseGate { min_sog_mps: 0.3 },
-            KineticOptions::live(true),
-        )
-        .unwrap();
-        let fix = |t: f64| LocalFix {
-            time_s: t,
-            position: crate::geodesy::NorthEast {
-                north_m: 1.5 * t,
-                east_m: 0.0,
-            },
-            sog_mps: Some(1.5),
-            cog_rad: Some(0.0),
-            heading_rad: Some(0.0),
-            yaw_rate_radps: Some(0.0),
-            stw_mps: None,
-            position_measured: true,
-        };
-        let mut state = base.prior(&fix(0.0), None);
-        state.x[idx::U] = 1.5;
-        state.theta[fault::MASS] = -0.7;
-        state.theta[fault::SURGE_DAMPING] = -0.6;
-        state.theta[fault::YAW_DAMPING] = 1.5;
-        let input = ShaftSpeeds {
-            port_radps: 60.0,
-            starboard_radps: 60.0,
-        };
-        for k in 1..=50 {
-            base.step(&mut state, &input, &fix(0.2 * f64::from(k)), 0.2)
-                .unwrap();
-            let (lo, hi) = PROFILE_ERROR_BOUNDS;
-            for i in [
-                fault::SURGE_DAMPING,
-                fault::YAW_DAMPING,
-                fault::THRUST,
-                fault::MASS,
-            ] {
-                assert!(
-                    (lo..=hi).contains(&state.theta[i]),
-                    "{i}: {}",
-                    state.theta[i]
-                );
-            }
-            assert!(
-                state.x.iter().all(|v| v.is_finite()),
-                "step {k}: {}",
-                state.x
-            );
-        }
-    }
 
     /// The Otter's velocity noise written in [`KineticConfig::otter_with`]
     /// is the formula of [`harbour_velocity_noise`] for its mass matrix,
