@@ -37,7 +37,7 @@ use zenoh::key_expr::KeyExpr;
 use zenoh::qos::CongestionControl;
 
 use crate::daemon::load::{
-    FLEET_SPEED_MPS, bench_settings, free_port, vessel_id, zenoh_config, zerr,
+    FLEET_SPEED_MPS, bench_settings, daemon_runtime, free_port, open_session, vessel_id, zerr,
 };
 use crate::daemon::motion::{Circle, Fleet};
 use crate::daemon::procstat;
@@ -115,18 +115,9 @@ pub fn run(opts: &SoakOptions) -> anyhow::Result<Soak> {
         opts.rate_hz > 0.0 && opts.rate_hz <= 50.0,
         "rate: more than 0, at most 50 Hz"
     );
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(crate::machine::cores())
-        .thread_name("twind-rt")
-        .enable_all()
-        .build()
-        .context("building the daemon's runtime")?;
+    let rt = daemon_runtime()?;
     let port = free_port()?;
-    let open = |listen: &[u16], connect: &[u16]| -> anyhow::Result<zenoh::Session> {
-        let config = zenoh_config(listen, connect)?;
-        rt.block_on(async { zenoh::open(config).await })
-            .map_err(|e| anyhow::anyhow!("opening a Zenoh session: {e}"))
-    };
+    let open = |listen: &[u16], connect: &[u16]| open_session(&rt, listen, connect);
     let daemon = open(&[port], &[])?;
     let generator = open(&[], &[port])?;
     let watcher = open(&[], &[port])?;

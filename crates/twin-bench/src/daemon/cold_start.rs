@@ -27,7 +27,9 @@ use zenoh::Wait;
 use zenoh::key_expr::KeyExpr;
 use zenoh::qos::CongestionControl;
 
-use super::load::{FLEET_SPEED_MPS, free_port, vessel_id, vessel_index, zenoh_config, zerr};
+use super::load::{
+    FLEET_SPEED_MPS, daemon_runtime, free_port, open_session, vessel_id, vessel_index, zerr,
+};
 use super::motion::{Circle, Fleet};
 use super::procstat;
 use crate::rng::SplitMix64;
@@ -60,18 +62,9 @@ pub struct ColdStart {
 /// Runs one point in this process.
 pub fn point(vessels: usize, vessel_liveliness: bool) -> anyhow::Result<ColdStart> {
     anyhow::ensure!((1..=99_999).contains(&vessels), "1 to 99,999 vessels");
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(crate::machine::cores())
-        .thread_name("twind-rt")
-        .enable_all()
-        .build()
-        .context("building the daemon's runtime")?;
+    let rt = daemon_runtime()?;
     let port = free_port()?;
-    let open = |listen: &[u16], connect: &[u16]| -> anyhow::Result<zenoh::Session> {
-        let config = zenoh_config(listen, connect)?;
-        rt.block_on(async { zenoh::open(config).await })
-            .map_err(|e| anyhow::anyhow!("opening a Zenoh session: {e}"))
-    };
+    let open = |listen: &[u16], connect: &[u16]| open_session(&rt, listen, connect);
     let daemon = open(&[port], &[])?;
     let generator = open(&[], &[port])?;
     let watcher = open(&[], &[port])?;

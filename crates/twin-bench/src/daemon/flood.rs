@@ -45,7 +45,9 @@ use zenoh::Wait;
 use zenoh::qos::CongestionControl;
 
 use super::histogram::Histogram;
-use super::load::{FLEET_SPEED_MPS, bench_settings, free_port, wait_matching, zenoh_config, zerr};
+use super::load::{
+    FLEET_SPEED_MPS, bench_settings, daemon_runtime, free_port, open_session, wait_matching, zerr,
+};
 use super::motion::{Circle, Fleet};
 use super::procstat;
 use crate::rng::SplitMix64;
@@ -146,18 +148,9 @@ pub fn run(opts: &FloodOptions) -> anyhow::Result<FloodReport> {
     let load_before = crate::machine::load_average_text();
     let keys = KeySpace::new("asv")?;
     let settings = bench_settings(true, false)?;
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(crate::machine::cores())
-        .thread_name("twind-rt")
-        .enable_all()
-        .build()
-        .context("building the daemon's runtime")?;
+    let rt = daemon_runtime()?;
     let port = free_port()?;
-    let open = |listen: &[u16], connect: &[u16]| -> anyhow::Result<zenoh::Session> {
-        let config = zenoh_config(listen, connect)?;
-        rt.block_on(async { zenoh::open(config).await })
-            .map_err(|e| anyhow::anyhow!("opening a Zenoh session: {e}"))
-    };
+    let open = |listen: &[u16], connect: &[u16]| open_session(&rt, listen, connect);
     let daemon = open(&[port], &[])?;
     let vessel = open(&[], &[port])?;
     let flooder = open(&[], &[port])?;

@@ -988,6 +988,28 @@ fn subscribe(
         .map_err(zerr("subscribing"))
 }
 
+/// The runtime the benchmarks run the daemon on: a worker per core.
+pub fn daemon_runtime() -> anyhow::Result<tokio::runtime::Runtime> {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(crate::machine::cores())
+        .thread_name("twind-rt")
+        .enable_all()
+        .build()
+        .context("building the daemon's runtime")
+}
+
+/// A loopback Zenoh session on `rt`, listening on and connecting to the
+/// given local ports.
+pub fn open_session(
+    rt: &tokio::runtime::Runtime,
+    listen: &[u16],
+    connect: &[u16],
+) -> anyhow::Result<zenoh::Session> {
+    let config = zenoh_config(listen, connect)?;
+    rt.block_on(async { zenoh::open(config).await })
+        .map_err(|e| anyhow::anyhow!("opening a Zenoh session: {e}"))
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::receiver::{Receiver, Window};
