@@ -445,6 +445,9 @@ pub mod daemon {
                 .unwrap()
                 .unwrap()
                 .unwrap();
+            // What the daemon published as it stopped is still on its way
+            // to the subscribers: let it arrive before their session closes.
+            tokio::time::sleep(Duration::from_millis(300)).await;
             self.input.close().await.unwrap();
             self.output.close().await.unwrap();
             self.daemon.close().await.unwrap();

@@ -114,6 +114,12 @@ pub const BLOCKS: &[Block] = &[
         shape: Shape::Markdown,
     },
     Block {
+        name: "soak",
+        file: "docs/deploy.md",
+        command: "cargo run --release -q -p twin-bench -- soak --vessels 2 --hours 3 2>/dev/null",
+        shape: Shape::Markdown,
+    },
+    Block {
         name: "web-fleet",
         file: "web/README.md",
         command: "cd web && node --test tests/fleet.test.js 2>/dev/null | grep -o 'fleet page measurement: .*'",

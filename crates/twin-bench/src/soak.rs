@@ -75,6 +75,10 @@ pub struct SoakRow {
     pub not_positive_definite: u64,
     /// The smallest eigenvalue of the shadow twin's kinetic `P` at the row.
     pub min_eigenvalue: Option<f64>,
+    /// The shadow twin's profile errors at the row: surge damping, yaw
+    /// damping, thrust coefficient, mass (relative). A steady turn does not
+    /// tell them apart, so this is where they wander.
+    pub profile_errors: Option<[f64; 4]>,
 }
 
 /// What the daemon's sessions report, gathered by the subscribers.
@@ -123,7 +127,10 @@ pub fn run(opts: &SoakOptions) -> anyhow::Result<Soak> {
     let watcher = open(&[], &[port])?;
     let heard = Arc::new(Mutex::new(Heard::default()));
     let subscribers = subscribe(&watcher, &heard)?;
-    let settings = bench_settings(true, false)?;
+    let mut settings = bench_settings(true, false)?;
+    // A vessel-hour passes in seconds of wall time: statistics every half
+    // second so that each row has the daemon's latest.
+    settings.publish.stats_interval_s = 0.5;
     let shadow_config = settings.twin_for(&vessel_id(0)).0;
     let cancel = CancellationToken::new();
     let task = rt.spawn(twind::run(twind::RunConfig::new(
@@ -295,6 +302,9 @@ fn row(
         }),
         not_positive_definite: not_pd,
         min_eigenvalue: min_eigenvalue(shadow),
+        profile_errors: shadow
+            .kinetic_state()
+            .map(|k| [k.theta[2], k.theta[3], k.theta[4], k.theta[5]]),
     }
 }
 
@@ -307,7 +317,7 @@ fn row_text(r: &SoakRow) -> String {
         (d.received, d.routed, d.refused.values().sum::<u64>())
     });
     format!(
-        "| {:.0} | {:.1} s | {:.1} MiB | {} | {} | {} | {} | {} / {} | {} | {} |",
+        "| {:.0} | {:.1} s | {:.1} MiB | {} | {} | {} | {} | {} / {} | {} | {} | {} |",
         r.hour,
         r.wall_s,
         r.rss_mib,
@@ -328,6 +338,10 @@ fn row_text(r: &SoakRow) -> String {
         r.not_positive_definite,
         r.min_eigenvalue
             .map_or_else(|| "-".into(), |e| format!("{e:.2e}")),
+        r.profile_errors.map_or_else(
+            || "-".into(),
+            |e| format!("{:+.2} / {:+.2} / {:+.2} / {:+.2}", e[0], e[1], e[2], e[3])
+        ),
     )
 }
 
@@ -344,8 +358,9 @@ pub fn table(opts: &SoakOptions, soak: &Soak) -> String {
     );
     out.push_str(
         "| vessel h | wall | RSS | received | routed | refused | rejected by the twins | \
-         healthy vessel's loss (port / stbd) | fixes with a covariance not SPD | min eig. kinetic P |\n\
-         |---|---|---|---|---|---|---|---|---|---|\n",
+         healthy vessel's loss (port / stbd) | fixes with a covariance not SPD | min eig. kinetic P | \
+         profile errors (surge / yaw damping, thrust, mass) |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         out.push_str(&row_text(r));

@@ -68,6 +68,41 @@ use crate::vessel::VesselParams;
 /// Longest integration sub-step, seconds.
 pub const MAX_SUBSTEP_S: f64 = 0.2;
 
+/// The smallest factor a profile error scales its part of the model by
+/// (`1 + error`: the damping, the thrust coefficient, the mass). The data
+/// of a vessel that is not excited (a steady turn) do not stop the errors
+/// wandering along the directions they cannot tell apart; held here, the
+/// model never divides by a vanishing mass nor damps with a negative
+/// resistance, and an error beyond it no longer moves the model, so the
+/// filter learns nothing more along it. Within it the model is unchanged.
+pub const MIN_PROFILE_FACTOR: f64 = 0.1;
+
+/// The factor `1 + error` held at [`MIN_PROFILE_FACTOR`] or above, and its
+/// derivative with respect to the error (zero where it is held; a NaN
+/// error is held too).
+#[inline(always)]
+fn profile_factor(error: f64) -> (f64, f64) {
+    let factor = 1.0 + error;
+    if factor >= MIN_PROFILE_FACTOR {
+        (factor, 1.0)
+    } else {
+        (MIN_PROFILE_FACTOR, 0.0)
+    }
+}
+
+/// [`profile_factor`] of each profile error of `theta`: surge damping, yaw
+/// damping, thrust coefficient, mass.
+#[inline(always)]
+fn profile_factors(theta: &Faults) -> [(f64, f64); 4] {
+    [
+        fault::SURGE_DAMPING,
+        fault::YAW_DAMPING,
+        fault::THRUST,
+        fault::MASS,
+    ]
+    .map(|i| profile_factor(theta[i]))
+}
+
 /// Number of states.
 pub const STATES: usize = 9;
 /// Number of measurement components.
@@ -616,8 +651,8 @@ impl OtterTwin {
         let a11 = -p.added_mass[0];
         let a22 = -p.added_mass[1];
         let [xu0, yv, nr0] = p.linear_damping;
-        let xu = xu0 * (1.0 + theta[fault::SURGE_DAMPING]);
-        let nr = nr0 * (1.0 + theta[fault::YAW_DAMPING]);
+        let [surge, yaw, thrust_scale, mass] = profile_factors(theta);
+        let (xu, nr) = (xu0 * surge.0, nr0 * yaw.0);
         let k_nl = p.yaw_damping_nonlinear_s;
         let b = p.propeller_offset_m;
         let cf = 0.5 * p.water_density_kgpm3 * p.draft_m * p.crossflow_drag_coeff;
@@ -627,7 +662,7 @@ impl OtterTwin {
             crossflow::forces(v, r, p.length_m)
         };
 
-        let scale = 1.0 + theta[fault::THRUST];
+        let scale = thrust_scale.0;
         let healthy = [
             (1.0 - theta[fault::PORT]) * thrust[0],
             (1.0 - theta[fault::STARBOARD]) * thrust[1],
@@ -646,7 +681,7 @@ impl OtterTwin {
             nr * yaw_damping - cf * ints.x_w_abs_w,
         );
         // (1 + th_m) M nu' = g: the mass error divides the acceleration.
-        let inertia = 1.0 / (1.0 + theta[fault::MASS]);
+        let inertia = 1.0 / mass.0;
         let nu_dot = mul(&self.mass_inverse, &(tau - coriolis + damping)) * inertia;
 
         let mut xdot = State::zeros();
@@ -694,9 +729,9 @@ impl OtterTwin {
             let dtau = SMatrix::<f64, 3, FAULTS>::new(
                 -scale * thrust[0],
                 -scale * thrust[1],
-                xu0 * u,
+                xu0 * u * surge.1,
                 0.0,
-                healthy[0] + healthy[1],
+                (healthy[0] + healthy[1]) * thrust_scale.1,
                 0.0,
                 0.0,
                 0.0,
@@ -707,13 +742,14 @@ impl OtterTwin {
                 -b * scale * thrust[0],
                 b * scale * thrust[1],
                 0.0,
-                nr0 * yaw_damping,
-                b * (healthy[0] - healthy[1]),
+                nr0 * yaw_damping * yaw.1,
+                b * (healthy[0] - healthy[1]) * thrust_scale.1,
                 0.0,
             );
             d.b_nu = mul(&self.mass_inverse, &dtau) * inertia;
             // d nu' / d th_m = -nu' / (1 + th_m).
-            d.b_nu.set_column(fault::MASS, &(nu_dot * -inertia));
+            d.b_nu
+                .set_column(fault::MASS, &(nu_dot * (-inertia * mass.1)));
         }
         d
     }
@@ -728,8 +764,8 @@ impl OtterTwin {
         let r_start = x0[idx::R];
         let r_end_euler = r_start + dt_s.min(MAX_SUBSTEP_S) * xdot_start[idx::R];
         let r_max = r_start.abs().max(r_end_euler.abs());
-        let damping = -p.linear_damping[2] * (1.0 + theta[fault::YAW_DAMPING]).max(0.1);
-        let inertia = p.mass_matrix[(2, 2)] * (1.0 + theta[fault::MASS]).max(0.1);
+        let damping = -p.linear_damping[2] * profile_factor(theta[fault::YAW_DAMPING]).0;
+        let inertia = p.mass_matrix[(2, 2)] * profile_factor(theta[fault::MASS]).0;
         let yaw_tau_s = inertia / (damping * (1.0 + 2.0 * p.yaw_damping_nonlinear_s * r_max));
         let max_h = MAX_SUBSTEP_S.min(0.5 * yaw_tau_s);
         let substeps = (dt_s / max_h).ceil().clamp(1.0, 1000.0) as usize;
@@ -1098,11 +1134,63 @@ mod tests {
         }
     }
 
+    /// Profile errors past [`MIN_PROFILE_FACTOR`]: a vessel with no mass,
+    /// damping or thrust left, as an unexcited filter's errors can wander.
+    fn faults_past_the_floor() -> Faults {
+        Faults::from([0.2, 0.05, -1.3, -1.5, -2.0, -1.2])
+    }
+
+    /// The Jacobians, within the profile's floor and past it (where the
+    /// profile errors' columns are zero: the model no longer moves with them).
     #[test]
     fn continuous_jacobians_match_finite_differences() {
+        for theta in [faults(), faults_past_the_floor()] {
+            jacobians_match_finite_differences_at(&theta);
+        }
+    }
+
+    /// Past the profile's floor the model holds each factor at
+    /// [`MIN_PROFILE_FACTOR`]: a second of steps stays finite, and errors
+    /// further past it give the same step.
+    #[test]
+    fn profile_errors_past_the_floor_leave_a_finite_model() {
+        let twin = OtterTwin::default();
+        let input = ShaftSpeeds {
+            port_radps: 80.0,
+            starboard_radps: 60.0,
+        };
+        let mut further = faults_past_the_floor();
+        for i in [
+            fault::SURGE_DAMPING,
+            fault::YAW_DAMPING,
+            fault::THRUST,
+            fault::MASS,
+        ] {
+            further[i] -= 10.0;
+        }
+        let mut x = state();
+        for _ in 0..10 {
+            let step = twin.step(&x, &input, &faults_past_the_floor(), 0.1);
+            let same = twin.step(&x, &input, &further, 0.1);
+            assert!(step.next.iter().all(|v| v.is_finite()), "{}", step.next);
+            assert_eq!(step.next, same.next);
+            x = step.next;
+        }
+        let held = twin.dynamics(&x, &Vector2::new(60.0, 45.0), &faults_past_the_floor());
+        for j in [
+            fault::SURGE_DAMPING,
+            fault::YAW_DAMPING,
+            fault::THRUST,
+            fault::MASS,
+        ] {
+            assert!(held.b().column(j).iter().all(|v| *v == 0.0), "column {j}");
+        }
+    }
+
+    fn jacobians_match_finite_differences_at(theta: &Faults) {
         let twin = OtterTwin::default();
         let thrust = Vector2::new(60.0, 45.0);
-        let theta = faults();
+        let theta = *theta;
         let x = state();
         let d = twin.dynamics(&x, &thrust, &theta);
         let eps = 1e-6;
