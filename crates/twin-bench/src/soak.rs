@@ -384,3 +384,39 @@ pub fn table(opts: &SoakOptions, soak: &Soak) -> String {
     );
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two minutes of the soak's steady turn, vessel 0's messages into the
+    /// daemon's twin: the twin takes every fix and its estimate stays
+    /// finite. (The turn does not tell the profile errors apart; when the
+    /// mass error passed -1 the prediction turned non-finite, after 38 s,
+    /// and every later fix was refused.)
+    #[test]
+    fn a_steady_turn_never_stops_the_twin() {
+        let settings = bench_settings(true, false).unwrap();
+        let mut twin = VesselTwin::new(settings.twin_for(&vessel_id(0)).0).unwrap();
+        let fleet = Fleet::new(Circle::from_simulator(FLEET_SPEED_MPS).unwrap(), 1).unwrap();
+        let mut rng = SplitMix64::new(24);
+        let (epoch_s, dt_s) = (1.7e9, 0.1);
+        let mut refused = Vec::new();
+        for k in 0..1200 {
+            let elapsed_s = f64::from(k) * dt_s;
+            let time_s = epoch_s + elapsed_s;
+            let _ = twin.on_propellers(&fleet.shafts(time_s - 1e-3, &mut rng));
+            if let Err(e) = twin.on_gnss(&fleet.fix(0, time_s, elapsed_s, &mut rng)) {
+                refused.push((elapsed_s, format!("{e:?}")));
+            }
+        }
+        assert!(
+            refused.is_empty(),
+            "{} fixes refused, the first {:?}",
+            refused.len(),
+            refused.first()
+        );
+        let k = twin.kinetic_state().expect("the extended twin runs");
+        assert!(k.x.iter().chain(k.theta.iter()).all(|v| v.is_finite()));
+    }
+}
