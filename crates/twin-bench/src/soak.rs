@@ -70,6 +70,8 @@ pub struct SoakRow {
     pub rejected: BTreeMap<String, u64>,
     /// Vessel 0's latest published port and starboard loss.
     pub healthy_loss: [Option<f64>; 2],
+    /// And the status published with each (`nominal`, `fault`, ...).
+    pub healthy_status: [Option<String>; 2],
     /// Fixes after which a covariance of the shadow twin was not positive
     /// definite, so far.
     pub not_positive_definite: u64,
@@ -297,8 +299,15 @@ fn row(
         rss_mib: procstat::rss_kib().unwrap_or(0) as f64 / 1024.0,
         daemon,
         rejected,
-        healthy_loss: healthy.map_or([None; 2], |f| {
+        healthy_loss: healthy.as_ref().map_or([None; 2], |f| {
             [f.thrusters.port.loss_raw, f.thrusters.starboard.loss_raw]
+        }),
+        healthy_status: healthy.map_or([None, None], |f| {
+            [&f.thrusters.port.status, &f.thrusters.starboard.status].map(|s| {
+                serde_json::to_value(s)
+                    .ok()
+                    .and_then(|v| v.as_str().map(str::to_owned))
+            })
         }),
         not_positive_definite: not_pd,
         min_eigenvalue: min_eigenvalue(shadow),
@@ -317,7 +326,7 @@ fn row_text(r: &SoakRow) -> String {
         (d.received, d.routed, d.refused.values().sum::<u64>())
     });
     format!(
-        "| {:.0} | {:.1} s | {:.1} MiB | {} | {} | {} | {} | {} / {} | {} | {} | {} |",
+        "| {:.0} | {:.1} s | {:.1} MiB | {} | {} | {} | {} | {} / {} ({} / {}) | {} | {} | {} |",
         r.hour,
         r.wall_s,
         r.rss_mib,
@@ -335,6 +344,8 @@ fn row_text(r: &SoakRow) -> String {
         },
         opt(r.healthy_loss[0]),
         opt(r.healthy_loss[1]),
+        r.healthy_status[0].as_deref().unwrap_or("-"),
+        r.healthy_status[1].as_deref().unwrap_or("-"),
         r.not_positive_definite,
         r.min_eigenvalue
             .map_or_else(|| "-".into(), |e| format!("{e:.2e}")),
@@ -358,7 +369,7 @@ pub fn table(opts: &SoakOptions, soak: &Soak) -> String {
     );
     out.push_str(
         "| vessel h | wall | RSS | received | routed | refused | rejected by the twins | \
-         healthy vessel's loss (port / stbd) | fixes with a covariance not SPD | min eig. kinetic P | \
+         healthy vessel's loss and status (port / stbd) | fixes with a covariance not SPD | min eig. kinetic P | \
          profile errors (surge / yaw damping, thrust, mass) |\n\
          |---|---|---|---|---|---|---|---|---|---|---|\n",
     );
