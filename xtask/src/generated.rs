@@ -116,7 +116,7 @@ pub const BLOCKS: &[Block] = &[
     Block {
         name: "soak",
         file: "docs/deploy.md",
-        command: "cargo run --release -q -p twin-bench -- soak --vessels 2 --hours 3 2>/dev/null",
+        command: "cargo run --release -q -p twin-bench -- soak 2>/dev/null",
         shape: Shape::Markdown,
     },
     Block {

@@ -74,16 +74,24 @@ pub const MAX_SUBSTEP_S: f64 = 0.2;
 /// wandering along the directions they cannot tell apart; held here, the
 /// model never divides by a vanishing mass nor damps with a negative
 /// resistance, and an error beyond it no longer moves the model, so the
-/// filter learns nothing more along it. Within it the model is unchanged.
+/// filter learns nothing more along it. Within the two bounds the model is
+/// unchanged.
 pub const MIN_PROFILE_FACTOR: f64 = 0.1;
 
-/// The factor `1 + error` held at [`MIN_PROFILE_FACTOR`] or above, and its
-/// derivative with respect to the error (zero where it is held; a NaN
-/// error is held too).
+/// The largest such factor: ten times the profile's damping, thrust or
+/// mass. Errors that wander upwards without bound (a day of steady turning)
+/// would otherwise make the model so stiff that its integration fails.
+pub const MAX_PROFILE_FACTOR: f64 = 10.0;
+
+/// The factor `1 + error` held within [`MIN_PROFILE_FACTOR`] and
+/// [`MAX_PROFILE_FACTOR`], and its derivative with respect to the error
+/// (zero where it is held; a NaN error is held at the floor).
 #[inline(always)]
 fn profile_factor(error: f64) -> (f64, f64) {
     let factor = 1.0 + error;
-    if factor >= MIN_PROFILE_FACTOR {
+    if factor > MAX_PROFILE_FACTOR {
+        (MAX_PROFILE_FACTOR, 0.0)
+    } else if factor >= MIN_PROFILE_FACTOR {
         (factor, 1.0)
     } else {
         (MIN_PROFILE_FACTOR, 0.0)
@@ -1140,50 +1148,57 @@ mod tests {
         Faults::from([0.2, 0.05, -1.3, -1.5, -2.0, -1.2])
     }
 
+    /// Profile errors past [`MAX_PROFILE_FACTOR`]: the errors a day of
+    /// steady turning drove upwards.
+    fn faults_past_the_ceiling() -> Faults {
+        Faults::from([0.2, 0.05, 9.5, 600.0, 12.0, 40.0])
+    }
+
     /// The Jacobians, within the profile's floor and past it (where the
     /// profile errors' columns are zero: the model no longer moves with them).
     #[test]
     fn continuous_jacobians_match_finite_differences() {
-        for theta in [faults(), faults_past_the_floor()] {
+        for theta in [faults(), faults_past_the_floor(), faults_past_the_ceiling()] {
             jacobians_match_finite_differences_at(&theta);
         }
     }
 
-    /// Past the profile's floor the model holds each factor at
-    /// [`MIN_PROFILE_FACTOR`]: a second of steps stays finite, and errors
-    /// further past it give the same step.
+    /// Past the profile's bounds the model holds each factor at
+    /// [`MIN_PROFILE_FACTOR`] or [`MAX_PROFILE_FACTOR`]: a second of steps
+    /// stays finite, and errors further past them give the same step.
     #[test]
-    fn profile_errors_past_the_floor_leave_a_finite_model() {
+    fn profile_errors_past_the_bounds_leave_a_finite_model() {
         let twin = OtterTwin::default();
         let input = ShaftSpeeds {
             port_radps: 80.0,
             starboard_radps: 60.0,
         };
-        let mut further = faults_past_the_floor();
-        for i in [
+        let profile = [
             fault::SURGE_DAMPING,
             fault::YAW_DAMPING,
             fault::THRUST,
             fault::MASS,
+        ];
+        for (past, further_by) in [
+            (faults_past_the_floor(), -10.0),
+            (faults_past_the_ceiling(), 1e6),
         ] {
-            further[i] -= 10.0;
-        }
-        let mut x = state();
-        for _ in 0..10 {
-            let step = twin.step(&x, &input, &faults_past_the_floor(), 0.1);
-            let same = twin.step(&x, &input, &further, 0.1);
-            assert!(step.next.iter().all(|v| v.is_finite()), "{}", step.next);
-            assert_eq!(step.next, same.next);
-            x = step.next;
-        }
-        let held = twin.dynamics(&x, &Vector2::new(60.0, 45.0), &faults_past_the_floor());
-        for j in [
-            fault::SURGE_DAMPING,
-            fault::YAW_DAMPING,
-            fault::THRUST,
-            fault::MASS,
-        ] {
-            assert!(held.b().column(j).iter().all(|v| *v == 0.0), "column {j}");
+            let mut further = past;
+            for i in profile {
+                further[i] += further_by;
+            }
+            let mut x = state();
+            for _ in 0..10 {
+                let step = twin.step(&x, &input, &past, 0.1);
+                let same = twin.step(&x, &input, &further, 0.1);
+                assert!(step.next.iter().all(|v| v.is_finite()), "{}", step.next);
+                assert_eq!(step.next, same.next);
+                x = step.next;
+            }
+            let held = twin.dynamics(&x, &Vector2::new(60.0, 45.0), &past);
+            for j in profile {
+                assert!(held.b().column(j).iter().all(|v| *v == 0.0), "column {j}");
+            }
         }
     }
 
