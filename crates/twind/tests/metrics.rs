@@ -30,8 +30,25 @@ impl Drop for Twind {
     }
 }
 
-/// twind on Zenoh `port`, its page and its metrics each on a free port.
-fn start_twind(port: u16) -> Twind {
+/// twind on a free Zenoh port (returned), its page and its metrics each on
+/// a free port. A port found free can be taken by another process before
+/// twind binds it: twind then exits before printing its URLs, and is
+/// started again on another port (three tries, then its error is shown).
+fn start_twind() -> (Twind, u16) {
+    let mut failures = Vec::new();
+    for _ in 0..3 {
+        let port = free_port();
+        match try_start_twind(port) {
+            Ok(twind) => return (twind, port),
+            Err(why) => failures.push(why),
+        }
+    }
+    panic!("twind did not start: {failures:#?}");
+}
+
+/// twind on Zenoh `port`, or what it printed on stderr when it stopped
+/// before printing both URLs.
+fn try_start_twind(port: u16) -> Result<Twind, String> {
     let dir = std::env::temp_dir().join(format!("twind-metrics-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let mut child = Command::new(env!("CARGO_BIN_EXE_twind"))
@@ -42,13 +59,20 @@ fn start_twind(port: u16) -> Twind {
         .args(["--metrics-listen", "127.0.0.1:0"])
         .current_dir(&dir)
         .stdout(Stdio::piped())
-        .stderr(Stdio::null())
+        .stderr(Stdio::piped())
         .spawn()
         .expect("twind starts");
     let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let mut errors = child.stderr.take().unwrap();
     let (mut page, mut metrics) = (None, None);
     while page.is_none() || metrics.is_none() {
-        let line = lines.next().expect("twind prints its URLs").unwrap();
+        let Some(Ok(line)) = lines.next() else {
+            let _ = child.kill();
+            let _ = child.wait();
+            let mut said = String::new();
+            let _ = errors.read_to_string(&mut said);
+            return Err(said);
+        };
         if let Some(url) = line.strip_prefix("twind web page: http://") {
             page = Some(url.trim_end_matches('/').parse().unwrap());
         } else if let Some(url) = line.strip_prefix("twind metrics: http://") {
@@ -56,11 +80,13 @@ fn start_twind(port: u16) -> Twind {
         }
     }
     std::thread::spawn(move || for _ in lines {});
-    Twind {
+    // Keep reading stderr so that twind never blocks on a full pipe.
+    std::thread::spawn(move || std::io::copy(&mut errors, &mut std::io::sink()));
+    Ok(Twind {
         child,
         page: page.unwrap(),
         metrics: metrics.unwrap(),
-    }
+    })
 }
 
 /// `GET /metrics`: the content type and the text.
@@ -136,8 +162,7 @@ async fn send(port: u16) -> zenoh::Session {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn metrics_count_what_the_daemon_received_and_promtool_accepts_them() {
     require_program("promtool", PROMTOOL_INSTALL);
-    let port = free_port();
-    let twind = start_twind(port);
+    let (twind, port) = start_twind();
     let client = send(port).await;
 
     // The daemon handles the messages on its own time: scrape until the
