@@ -102,13 +102,7 @@ fn profile_factor(error: f64) -> (f64, f64) {
 /// damping, thrust coefficient, mass.
 #[inline(always)]
 fn profile_factors(theta: &Faults) -> [(f64, f64); 4] {
-    [
-        fault::SURGE_DAMPING,
-        fault::YAW_DAMPING,
-        fault::THRUST,
-        fault::MASS,
-    ]
-    .map(|i| profile_factor(theta[i]))
+    fault::PROFILE.map(|i| profile_factor(theta[i]))
 }
 
 /// Number of states.
@@ -175,6 +169,8 @@ pub mod fault {
     pub const THRUST: usize = 4;
     /// Relative error of the mass matrix (rigid body and added mass).
     pub const MASS: usize = 5;
+    /// The profile's errors, in order.
+    pub const PROFILE: [usize; 4] = [SURGE_DAMPING, YAW_DAMPING, THRUST, MASS];
 }
 
 /// A pattern with `true` at the listed `(row, column)` entries.
@@ -1173,18 +1169,12 @@ mod tests {
             port_radps: 80.0,
             starboard_radps: 60.0,
         };
-        let profile = [
-            fault::SURGE_DAMPING,
-            fault::YAW_DAMPING,
-            fault::THRUST,
-            fault::MASS,
-        ];
         for (past, further_by) in [
             (faults_past_the_floor(), -10.0),
             (faults_past_the_ceiling(), 1e6),
         ] {
             let mut further = past;
-            for i in profile {
+            for i in fault::PROFILE {
                 further[i] += further_by;
             }
             let mut x = state();
@@ -1196,7 +1186,7 @@ mod tests {
                 x = step.next;
             }
             let held = twin.dynamics(&x, &Vector2::new(60.0, 45.0), &past);
-            for j in profile {
+            for j in fault::PROFILE {
                 assert!(held.b().column(j).iter().all(|v| *v == 0.0), "column {j}");
             }
         }
