@@ -456,18 +456,48 @@ struct KineticEstimator {
     /// Exponentially weighted mean of the unit heading vector over the
     /// filter's memory (see [`KineticConfig::min_heading_spread`]).
     heading_mean: [f64; 2],
+    /// Exponentially weighted sums of the yaw rate, of its square and of
+    /// the weights over the filter's memory since the estimate started
+    /// (see [`KineticConfig::min_yaw_rate_spread`]): the means are the sums
+    /// over the weights, so the start's guess counts as one sample, not as
+    /// a memory's worth.
+    yaw_rate_moments: [f64; 3],
 }
 
 impl KineticEstimator {
-    /// Moves the heading's running mean towards the estimate after a step
-    /// of `dt_s`, or starts it at the estimate.
-    fn track_heading(&mut self, dt_s: Option<f64>) {
+    /// Moves the running means of the heading and the yaw rate towards the
+    /// estimate after a step of `dt_s`, or starts them at the estimate.
+    fn track_motion(&mut self, dt_s: Option<f64>) {
         let Some(state) = &self.state else { return };
         let (sin_h, cos_h) = state.x[idx::PSI].sin_cos();
-        let m = &mut self.heading_mean;
         let w = dt_s.map_or(1.0, |dt| 1.0 - self.base.filter().lambda(dt));
+        let m = &mut self.heading_mean;
         m[0] += w * (cos_h - m[0]);
         m[1] += w * (sin_h - m[1]);
+        let r = state.x[idx::R];
+        let y = &mut self.yaw_rate_moments;
+        match dt_s {
+            Some(_) => {
+                for (sum, sample) in y.iter_mut().zip([r, r * r, 1.0]) {
+                    *sum += w * (sample - *sum);
+                }
+            }
+            None => *y = [0.0; 3],
+        }
+    }
+
+    /// Whether the yaw rates over the filter's memory separate a difference
+    /// of the losses from a yaw damping error: near zero, or spread
+    /// ([`KineticConfig::min_yaw_rate_spread`]).
+    fn yaw_balance_told(&self, config: &KineticConfig) -> bool {
+        let [sum, sum_square, weight] = self.yaw_rate_moments;
+        if weight <= 0.0 {
+            return false;
+        }
+        let (mean, mean_square) = (sum / weight, sum_square / weight);
+        let rms = mean_square.max(0.0).sqrt();
+        let std = (mean_square - mean * mean).max(0.0).sqrt();
+        rms <= config.straight_yaw_rate_radps || std >= config.min_yaw_rate_spread * rms
     }
 
     /// How much the heading has varied over the filter's memory:
@@ -569,6 +599,7 @@ impl VesselTwin {
                 last_report: None,
                 last_available: [false; MEASUREMENTS],
                 heading_mean: [0.0; 2],
+                yaw_rate_moments: [0.0; 3],
                 last_input: None,
             },
             config,
@@ -916,11 +947,11 @@ impl VesselTwin {
                     .map_err(Rejection::Estimator)?;
                 kinetic.last_report = Some(report);
                 kinetic.last_available = kinetic.base.measurement(fix).available;
-                kinetic.track_heading(Some(dt));
+                kinetic.track_motion(Some(dt));
             }
             _ => {
                 kinetic.state = Some(kinetic.base.prior(fix, restored.as_ref()));
-                kinetic.track_heading(None);
+                kinetic.track_motion(None);
             }
         }
         kinetic.last_input = Some(u);
@@ -1062,7 +1093,13 @@ impl VesselTwin {
                 // it turns ([`KineticConfig::min_heading_spread`]).
                 let common_part_told = !self.config.kinetic.estimate_current
                     || self.kinetic.heading_spread() >= self.config.kinetic.min_heading_spread;
-                let r = self.kinetic.base.losses(k, common_part_told);
+                // On a steady turn a yaw damping error and a difference of
+                // the losses are one ([`KineticConfig::min_yaw_rate_spread`]).
+                let yaw_balance_told = self.kinetic.yaw_balance_told(&self.config.kinetic);
+                let r = self
+                    .kinetic
+                    .base
+                    .losses(k, common_part_told, yaw_balance_told);
                 let damping_of = |i: usize| (k.theta[i], k.s[(i, i)].max(0.0).sqrt());
                 (
                     FaultSource::Kinetic,

@@ -12,7 +12,7 @@
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 use super::{CourseGate, Learnt, LocalFix, Surroundings};
-use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
+use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, SmoothedRegressors, StepReport};
 use crate::model::Measurement;
 use crate::models::effects::SensorEffects;
 use crate::models::otter_twin::{
@@ -66,6 +66,19 @@ pub struct KineticConfig {
     /// `1 - |mean of (cos psi, sin psi)|`, 0.05 being about a 65 deg arc.
     /// Their comparison (the yaw balance) needs no turn.
     pub min_heading_spread: f64,
+    /// On a steady turn a yaw damping error and a difference of the
+    /// losses move the yaw balance alike (`N_r r` against `l (T_p - T_s)`,
+    /// one equation at one yaw rate), and the filter's own noise, read as
+    /// dynamics, drives the yaw damping error away with a one-sided loss to
+    /// balance it. The comparison of the propellers counts as excited only
+    /// while the yaw rate over the filter's memory is either near zero (a
+    /// straight run: `rms(r) <= straight_yaw_rate_radps`, where the yaw
+    /// damping moment vanishes) or spread: `std(r) >= min_yaw_rate_spread
+    /// rms(r)`, the yaw balance seen at rates unlike each other.
+    pub min_yaw_rate_spread: f64,
+    /// The yaw rate below which a run counts as straight for
+    /// [`Self::min_yaw_rate_spread`], rad/s.
+    pub straight_yaw_rate_radps: f64,
     /// How much two propellers of one make differ when both are healthy
     /// (thrust coefficients, shaft-speed sensors, their distance from the
     /// centre line), as a standard deviation of their relative
@@ -165,6 +178,8 @@ impl KineticConfig {
                 ])),
                 anti_windup_ratio: 0.1,
                 excitation_sigma: 0.03,
+                // Off: see `KineticConfig::SMOOTHED_PROFILE_REGRESSORS`.
+                smoothed_regressors: None,
                 noise_adaptation: None,
             },
             initial_current_sigma_mps: 0.5,
@@ -176,6 +191,8 @@ impl KineticConfig {
             excitation_sigma: 0.1,
             relative_excitation_sigma: 0.05,
             min_heading_spread: 0.05,
+            min_yaw_rate_spread: 0.5,
+            straight_yaw_rate_radps: 0.02,
             propeller_mismatch_sigma: 0.03,
         }
     }
@@ -189,6 +206,22 @@ impl KineticConfig {
     /// trust matrix in `tests/src/trust.rs`), which the filter must take as
     /// noise rather than pin on the losses.
     pub const UNMODELLED_FORCE_FACTOR: f64 = 5.0;
+
+    /// Instrumental regressors for the profile's errors (their
+    /// sensitivities at the velocities low-passed over 5 s,
+    /// [`SmoothedRegressors`]), for [`AekfConfig::smoothed_regressors`].
+    /// They remove the bias that drives the profile errors away on a steady
+    /// turn (docs/model.md section 10), but the data they discard also
+    /// pinned the yaw damping down: on the trust matrix, a loss on one
+    /// propeller is then told apart later (fewer losses declared within a
+    /// trial), so the twin runs without them and guards the decision on a
+    /// steady turn instead ([`Self::yaw_balance_spread`]).
+    pub const SMOOTHED_PROFILE_REGRESSORS: SmoothedRegressors<STATES, FAULTS> =
+        SmoothedRegressors {
+            time_constant_s: 5.0,
+            states: [false, false, false, true, true, true, false, false, false],
+            faults: [false, false, true, true, true, true],
+        };
 
     /// [`Self::otter_with`] for the vessel `params` describes: its
     /// parameters, and the velocities' process noise of harbour water on a
@@ -601,8 +634,16 @@ impl KineticBase {
     /// `common_part_told`: whether the data can separate the losses'
     /// common part from what else slows the vessel (false on a straight
     /// run with the current estimated): without it no loss is excited on
-    /// its own.
-    pub fn losses(&self, state: &KineticState, common_part_told: bool) -> LossReading {
+    /// its own. `yaw_balance_told`: whether the yaw rates seen separate a
+    /// difference of the losses from a yaw damping error (false on a steady
+    /// turn, [`KineticConfig::min_yaw_rate_spread`]): without it the
+    /// comparison is not excited.
+    pub fn losses(
+        &self,
+        state: &KineticState,
+        common_part_told: bool,
+        yaw_balance_told: bool,
+    ) -> LossReading {
         let t = &state.theta;
         let s = &state.s;
         let (p, sb) = (fault::PORT, fault::STARBOARD);
@@ -652,7 +693,7 @@ impl KineticBase {
         // propeller's relative loss has the narrower uncertainty (it
         // divides by the stronger one's effectiveness), and once it is
         // within the bar the data tell both sides.
-        let pair_excited = sp.min(ss) <= self.relative_excitation_sigma;
+        let pair_excited = yaw_balance_told && sp.min(ss) <= self.relative_excitation_sigma;
         let relative_excited = [pair_excited; 2];
         let excited = sigma.map(|s| common_part_told && s <= self.excitation_sigma);
         // Where the data do not tell the losses themselves, the losses
