@@ -64,7 +64,8 @@ pub struct KineticConfig {
     /// than it knows. The losses count as excited on their own only while
     /// the heading over the filter's memory has spread at least this much:
     /// `1 - |mean of (cos psi, sin psi)|`, 0.05 being about a 65 deg arc.
-    /// Their comparison (the yaw balance) needs no turn.
+    /// Their comparison (the yaw balance) needs no turn, only yaw rates
+    /// that are not all one ([`Self::min_yaw_rate_spread`]).
     pub min_heading_spread: f64,
     /// On a steady turn a yaw damping error and a difference of the
     /// losses move the yaw balance alike (`N_r r` against `l (T_p - T_s)`,
@@ -215,11 +216,13 @@ impl KineticConfig {
     /// pinned the yaw damping down: on the trust matrix, a loss on one
     /// propeller is then told apart later (fewer losses declared within a
     /// trial), so the twin runs without them and guards the decision on a
-    /// steady turn instead ([`Self::yaw_balance_spread`]).
+    /// steady turn instead ([`Self::min_yaw_rate_spread`]).
     pub const SMOOTHED_PROFILE_REGRESSORS: SmoothedRegressors<STATES, FAULTS> =
         SmoothedRegressors {
             time_constant_s: 5.0,
+            // u, v and r of [`idx`].
             states: [false, false, false, true, true, true, false, false, false],
+            // The four of [`fault::PROFILE`].
             faults: [false, false, true, true, true, true],
         };
 
@@ -862,6 +865,25 @@ mod tests {
 
     /// The Otter's configurations are the ones written out, whichever way
     /// they are reached.
+    #[test]
+    fn the_smoothed_regressors_mark_the_velocities_and_the_profile_errors() {
+        let smoothing = KineticConfig::SMOOTHED_PROFILE_REGRESSORS;
+        for i in 0..STATES {
+            assert_eq!(
+                smoothing.states[i],
+                [idx::U, idx::V, idx::R].contains(&i),
+                "state {i}"
+            );
+        }
+        for j in 0..FAULTS {
+            assert_eq!(
+                smoothing.faults[j],
+                fault::PROFILE.contains(&j),
+                "fault {j}"
+            );
+        }
+    }
+
     #[test]
     fn the_otter_reached_through_a_profile_is_the_written_otter() {
         let otter = VesselParams::default();
