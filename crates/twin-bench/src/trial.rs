@@ -382,7 +382,6 @@ impl TrialFile {
             initial_fault_covariance: from_rows(&c.initial_fault_covariance),
             anti_windup_ratio: c.anti_windup_ratio,
             excitation_sigma: c.excitation_sigma,
-            smoothed_regressors: None,
             noise_adaptation,
         };
         let filter = Aekf::new(KinematicModel, config)?;

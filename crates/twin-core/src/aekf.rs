@@ -22,9 +22,7 @@
 //! - measurement components may be missing (masked), exactly: a masked
 //!   component has a zero row in `H` and a zero innovation;
 //! - the measurement model may be nonlinear (`H` is its Jacobian at the
-//!   predicted state), and angle innovations are wrapped;
-//! - optionally, some faults' sensitivities are evaluated at a low-passed
-//!   state rather than at the estimate ([`SmoothedRegressors`]).
+//!   predicted state), and angle innovations are wrapped.
 //!
 //! Computed, not changed: `Sigma` is factorised once per step as `L D L^T`
 //! (no square roots) and every solve with it reuses the factor; steps 8-10
@@ -101,39 +99,8 @@ pub struct AekfConfig<const N: usize, const M: usize, const P: usize> {
     /// A fault component counts as excited while the data of the last memory
     /// window alone would pin it down to this standard deviation or better.
     pub excitation_sigma: f64,
-    /// Instrumental regressors for some faults ([`SmoothedRegressors`]),
-    /// or `None`: every fault's sensitivity at the estimate, as in the
-    /// seed's recursion.
-    pub smoothed_regressors: Option<SmoothedRegressors<N, P>>,
     /// Optional Q/R adaptation.
     pub noise_adaptation: Option<NoiseAdaptation>,
-}
-
-/// Fault sensitivities evaluated at a smoothed state: instrumental
-/// variables against the bias that the estimate's own noise puts into the
-/// faults it regresses on (errors in variables).
-///
-/// The sensitivity of the state to a fault that scales a force of the
-/// velocities (a damping, the mass) is a function of the velocities. At the
-/// estimate, it carries the estimate's error, which the next innovation
-/// undoes: the two are correlated, and the update reads the filter's own
-/// error correction as dynamics (an estimate that returns to the truth
-/// faster than the model lets it looks like a lighter, more damped hull).
-/// On a steady turn of a vessel that matches its profile this drove the
-/// mass error to its floor within a minute and a yaw damping error, with a
-/// loss on one propeller to balance it, past 1. Evaluated at the velocities
-/// low-passed over `time_constant_s`, the sensitivity follows the
-/// manoeuvres but hardly the last fixes' noise, and the correlation goes.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SmoothedRegressors<const N: usize, const P: usize> {
-    /// Time constant of the low-pass, s: long against the time the
-    /// estimate's error takes to decay, short against a manoeuvre.
-    pub time_constant_s: f64,
-    /// The state components low-passed (not angles: a low-pass across the
-    /// wrap is wrong); the others are the estimate's.
-    pub states: [bool; N],
-    /// The faults whose sensitivity is taken at the smoothed state.
-    pub faults: [bool; P],
 }
 
 /// The estimate the filter carries from step to step. Plain data: clone it to
@@ -163,10 +130,6 @@ pub struct AekfState<const N: usize, const M: usize, const P: usize> {
     pub recent_information: SMatrix<f64, P, P>,
     /// Steps taken.
     pub steps: u64,
-    /// The state at which the smoothed fault sensitivities are evaluated
-    /// ([`AekfConfig::smoothed_regressors`]): the estimate, its marked
-    /// components low-passed. Unused without smoothing.
-    pub regressor_state: SVector<f64, N>,
 }
 
 impl<const N: usize, const M: usize, const P: usize> AekfState<N, M, P> {
@@ -189,7 +152,6 @@ impl<const N: usize, const M: usize, const P: usize> AekfState<N, M, P> {
             held_information: SVector::zeros(),
             recent_information: SMatrix::zeros(),
             steps: 0,
-            regressor_state: x0,
         }
     }
 
@@ -332,8 +294,6 @@ struct Prediction<const N: usize, const P: usize> {
     q_step: SMatrix<f64, N, N>,
     /// The predicted covariance `P-`.
     p_prior: SMatrix<f64, N, N>,
-    /// The smoothed state of the step, kept for the next one.
-    regressor_state: Option<SVector<f64, N>>,
 }
 
 /// The filter: a model and its tuning. Stateless; see [`AekfState`].
@@ -376,13 +336,6 @@ where
                 "excitation_sigma must be positive",
             ));
         }
-        if let Some(smoothing) = config.smoothed_regressors
-            && !(smoothing.time_constant_s > 0.0 && smoothing.time_constant_s.is_finite())
-        {
-            return Err(AekfError::InvalidConfig(
-                "the smoothed regressors' time constant must be positive and finite",
-            ));
-        }
         if let Some(a) = config.noise_adaptation
             && !(a.factor > 0.0 && a.factor < 1.0)
         {
@@ -414,23 +367,6 @@ where
             ));
         }
         Ok(Self { model, config })
-    }
-
-    /// The state at which the smoothed fault sensitivities are evaluated
-    /// this step (`None` without smoothing): the estimate, its marked
-    /// components the previous step's smoothed values moved toward it by
-    /// `1 - exp(-dt / tau)`.
-    fn regressor_state(&self, state: &AekfState<N, M, P>, dt_s: f64) -> Option<SVector<f64, N>> {
-        let smoothing = self.config.smoothed_regressors.as_ref()?;
-        let weight = 1.0 - (-dt_s / smoothing.time_constant_s).exp();
-        let mut at = state.x;
-        for (i, marked) in smoothing.states.iter().enumerate() {
-            if *marked {
-                let previous = state.regressor_state[i];
-                at[i] = previous + weight * (state.x[i] - previous);
-            }
-        }
-        Some(at)
     }
 
     /// The per-step forgetting factor for a step of `dt_s` seconds.
@@ -507,29 +443,11 @@ where
             });
         }
         let f = tr.jacobian;
-        // The fault sensitivity, the marked faults' columns evaluated at
-        // the smoothed state where configured.
-        let regressor_state = self.regressor_state(state, dt_s);
-        let psi = match (&self.config.smoothed_regressors, regressor_state) {
-            (Some(smoothing), Some(at)) => {
-                let smoothed = self
-                    .model
-                    .transition(&at, input, &state.theta, dt_s)
-                    .fault_sensitivity;
-                let mut psi = tr.fault_sensitivity;
-                for (j, marked) in smoothing.faults.iter().enumerate() {
-                    if *marked {
-                        psi.set_column(j, &smoothed.column(j));
-                    }
-                }
-                psi
-            }
-            _ => tr.fault_sensitivity,
-        };
         debug_assert!(
             crate::linalg::within_pattern(&f, &Mdl::TRANSITION_PATTERN),
             "the model's transition Jacobian has entries outside its TRANSITION_PATTERN"
         );
+        let psi = tr.fault_sensitivity;
         let x_bar = tr.next;
 
         // Step 2.
@@ -550,7 +468,6 @@ where
             x_bar,
             q_step,
             p_prior,
-            regressor_state,
         };
         if self.model.observation_in_sparser_pattern() {
             self.update(
@@ -588,7 +505,6 @@ where
             x_bar,
             q_step,
             p_prior,
-            regressor_state,
         } = *prediction;
         let f_pattern = &Mdl::TRANSITION_PATTERN;
         // The measurement model at the predicted state, with missing
@@ -798,9 +714,6 @@ where
         state.held_information = held_information;
         state.recent_information = recent_information;
         state.steps += 1;
-        if let Some(at) = regressor_state {
-            state.regressor_state = at;
-        }
         report.nis = nis;
         report.forgetting = forgetting;
         Ok(report)
@@ -1110,44 +1023,5 @@ mod tests {
             assert_eq!(sparser_state, full_state);
         }
         assert_eq!(sparser_state.steps, 300);
-    }
-
-    /// A smoothed regressor state moves toward the estimate by the low-pass
-    /// weight on the marked components only, and a non-positive time
-    /// constant is refused.
-    #[test]
-    fn the_regressor_state_is_the_low_passed_estimate() {
-        let (filter, start, steps) = otter_trial();
-        let smoothing = crate::estimator::KineticConfig::SMOOTHED_PROFILE_REGRESSORS;
-        let mut config = filter.config;
-        config.smoothed_regressors = Some(smoothing);
-        let filter = Aekf::new(filter.model, config).unwrap();
-        let mut state = start;
-        for (u, y) in steps.iter().take(20) {
-            filter.step(&mut state, u, y, 0.2).unwrap();
-        }
-        let before = state;
-        let weight = 1.0 - (-0.2 / smoothing.time_constant_s).exp();
-        let (u, y) = &steps[20];
-        filter.step(&mut state, u, y, 0.2).unwrap();
-        for i in 0..STATES {
-            let expected = if smoothing.states[i] {
-                before.regressor_state[i] + weight * (before.x[i] - before.regressor_state[i])
-            } else {
-                before.x[i]
-            };
-            assert!(
-                (state.regressor_state[i] - expected).abs() < 1e-12,
-                "state {i}"
-            );
-        }
-        config.smoothed_regressors = Some(SmoothedRegressors {
-            time_constant_s: 0.0,
-            ..smoothing
-        });
-        assert!(matches!(
-            Aekf::new(filter.model, config),
-            Err(AekfError::InvalidConfig(_))
-        ));
     }
 }

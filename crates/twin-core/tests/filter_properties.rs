@@ -24,7 +24,6 @@ fn config(q_density: Vector4<f64>, r_sigma: Vector4<f64>, tau_s: f64) -> AekfCon
         initial_fault_covariance: SMatrix::identity() * 0.1,
         anti_windup_ratio: 0.1,
         excitation_sigma: 0.02,
-        smoothed_regressors: None,
         noise_adaptation: None,
     }
 }

@@ -46,7 +46,6 @@ fn forecast_coverage(propagation: Propagation, calibration_steps: usize) -> (f64
         initial_fault_covariance: SMatrix::identity() * 0.1,
         anti_windup_ratio: 0.1,
         excitation_sigma: 0.02,
-        smoothed_regressors: None,
         noise_adaptation: None,
     };
     let filter = Aekf::new(KinematicModel, config).unwrap();
@@ -179,7 +178,6 @@ fn fault_uncertainty_propagates_exactly() {
         held_information: Vector2::zeros(),
         recent_information: SMatrix::zeros(),
         steps: 0,
-        regressor_state: Vector4::zeros(),
     };
     state.x[3] = 0.1;
     let u = KinematicInput {

@@ -26,7 +26,6 @@ fn seed_config(dt_s: f64) -> AekfConfig<4, 4, 2> {
         initial_fault_covariance: SMatrix::identity() * 0.1,
         anti_windup_ratio: 0.1,
         excitation_sigma: 0.02,
-        smoothed_regressors: None,
         noise_adaptation: None,
     }
 }

@@ -12,7 +12,7 @@
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 use super::{CourseGate, Learnt, LocalFix, Surroundings};
-use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, SmoothedRegressors, StepReport};
+use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
 use crate::model::Measurement;
 use crate::models::effects::SensorEffects;
 use crate::models::otter_twin::{
@@ -179,8 +179,6 @@ impl KineticConfig {
                 ])),
                 anti_windup_ratio: 0.1,
                 excitation_sigma: 0.03,
-                // Off: see `KineticConfig::SMOOTHED_PROFILE_REGRESSORS`.
-                smoothed_regressors: None,
                 noise_adaptation: None,
             },
             initial_current_sigma_mps: 0.5,
@@ -207,24 +205,6 @@ impl KineticConfig {
     /// trust matrix in `tests/src/trust.rs`), which the filter must take as
     /// noise rather than pin on the losses.
     pub const UNMODELLED_FORCE_FACTOR: f64 = 5.0;
-
-    /// Instrumental regressors for the profile's errors (their
-    /// sensitivities at the velocities low-passed over 5 s,
-    /// [`SmoothedRegressors`]), for [`AekfConfig::smoothed_regressors`].
-    /// They remove the bias that drives the profile errors away on a steady
-    /// turn (docs/model.md section 10), but the data they discard also
-    /// pinned the yaw damping down: on the trust matrix, a loss on one
-    /// propeller is then told apart later (fewer losses declared within a
-    /// trial), so the twin runs without them and guards the decision on a
-    /// steady turn instead ([`Self::min_yaw_rate_spread`]).
-    pub const SMOOTHED_PROFILE_REGRESSORS: SmoothedRegressors<STATES, FAULTS> =
-        SmoothedRegressors {
-            time_constant_s: 5.0,
-            // u, v and r of [`idx`].
-            states: [false, false, false, true, true, true, false, false, false],
-            // The four of [`fault::PROFILE`].
-            faults: [false, false, true, true, true, true],
-        };
 
     /// [`Self::otter_with`] for the vessel `params` describes: its
     /// parameters, and the velocities' process noise of harbour water on a
@@ -865,25 +845,6 @@ mod tests {
 
     /// The Otter's configurations are the ones written out, whichever way
     /// they are reached.
-    #[test]
-    fn the_smoothed_regressors_mark_the_velocities_and_the_profile_errors() {
-        let smoothing = KineticConfig::SMOOTHED_PROFILE_REGRESSORS;
-        for i in 0..STATES {
-            assert_eq!(
-                smoothing.states[i],
-                [idx::U, idx::V, idx::R].contains(&i),
-                "state {i}"
-            );
-        }
-        for j in 0..FAULTS {
-            assert_eq!(
-                smoothing.faults[j],
-                fault::PROFILE.contains(&j),
-                "fault {j}"
-            );
-        }
-    }
-
     #[test]
     fn the_otter_reached_through_a_profile_is_the_written_otter() {
         let otter = VesselParams::default();

@@ -42,7 +42,6 @@ impl SeedConfig {
                 initial_fault_covariance: SMatrix::identity() * 0.1,
                 anti_windup_ratio: 0.1,
                 excitation_sigma: 0.02,
-                smoothed_regressors: None,
                 noise_adaptation: None,
             },
             inputs: InputDerivationConfig::thesis(),

@@ -65,7 +65,6 @@ impl WaterBase {
             initial_fault_covariance: SMatrix::zeros(),
             anti_windup_ratio: 0.1,
             excitation_sigma: 0.03,
-            smoothed_regressors: None,
             noise_adaptation: None,
         };
         let model = WaterKinematic {
