@@ -13,7 +13,7 @@ use twin_core::estimator::{
     CourseGate, KineticBase, KineticOptions, KineticState, LocalFix, ShaftAccumulator,
 };
 use twin_core::model::Measurement;
-use twin_core::models::otter_twin::{MEASUREMENTS, ShaftSpeeds};
+use twin_core::models::otter_twin::{MEASUREMENTS, ShaftSpeeds, meas};
 use twin_core::sample::{GnssFix, PropellerSpeeds};
 use twin_core::twin::{TwinConfig, VesselTwin};
 use twin_sim::{Scenario, SensorEvent, SimRun};
@@ -107,6 +107,9 @@ pub struct KineticStep {
     pub input: ShaftSpeeds,
     /// The fix as the filter's measurement.
     pub y: Measurement<MEASUREMENTS>,
+    /// The course's variance for the fix's speed, rad², which the twin's
+    /// base sets before the step (`KineticBase::course_variance`).
+    pub course_variance: f64,
     /// Time since the previous fix, s.
     pub dt_s: f64,
 }
@@ -167,9 +170,11 @@ pub fn kinetic_steps(inputs: &[TwinInput], config: TwinConfig) -> anyhow::Result
                 };
                 last_fix_s = Some(fix.time_s);
                 start.get_or_insert(before);
+                let local = LocalFix::from_gnss(fix, &frame);
                 steps.push(KineticStep {
                     input: u,
-                    y: base.measurement(&LocalFix::from_gnss(fix, &frame)),
+                    y: base.measurement(&local),
+                    course_variance: base.course_variance(&local),
                     dt_s: fix.time_s - t0,
                 });
             }
@@ -200,6 +205,7 @@ impl KineticSteps {
         let mut est = self.start;
         for s in &self.steps {
             let (input, y, dt_s) = (black_box(&s.input), black_box(&s.y), black_box(s.dt_s));
+            est.measurement_noise[(meas::COG, meas::COG)] = black_box(s.course_variance);
             let r = match code {
                 StepCode::Dispatched => self.filter.step(black_box(&mut est), input, y, dt_s),
                 StepCode::Baseline => {

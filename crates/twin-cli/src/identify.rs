@@ -35,7 +35,9 @@ pub struct ParameterJson {
     pub name: &'static str,
     /// The identified value over the starting profile's.
     pub scale: f64,
-    /// Relative standard deviation after the trial.
+    /// Relative standard deviation after the trial; `null` in the JSON
+    /// where the likelihood has no curvature to give one (infinite: not
+    /// identifiable).
     pub sigma: f64,
     /// `identified`, `not_identifiable` (kept from the starting profile) or
     /// `held` (the force scale, kept from the starting profile).

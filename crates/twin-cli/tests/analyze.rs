@@ -142,11 +142,17 @@ fn the_json_report_has_the_contract_fields() {
         assert!(q.get(key).is_some(), "quality.kinetic.{key}");
     }
     // The twin's model explains the simulated data: innovations at the
-    // sensor noise, NIS per dof near 1.
+    // sensor noise, NIS per dof near 1, and not above it. Below it by the
+    // pessimism the default (unidentified) profile is run with on purpose:
+    // velocity process noise several times the water's, to cover a vessel
+    // unlike its profile (`KineticConfig::unmodelled_force_factor`). The
+    // log measures 0.79 with each fix's course noise from its speed; with
+    // the course's noise understated (a fixed 0.03 rad against 0.033 at
+    // this log's 1.5 m/s) it read 0.82.
     let rms = &q["innovation_rms"];
     assert!(rms["north_m"].as_f64().unwrap() < 0.4 && rms["east_m"].as_f64().unwrap() < 0.4);
     let nis = q["mean_nis_per_dof"].as_f64().unwrap();
-    assert!((0.8..1.2).contains(&nis), "{nis}");
+    assert!((0.7..1.2).contains(&nis), "{nis}");
     // Text: the human summary says the same.
     let (ok, text, _) = twin(&["analyze", LOG]);
     assert!(ok);

@@ -5,8 +5,10 @@
 //! straight run, which cannot give the yaw damping and must say so.
 //!
 //! The bars were fixed before the runs: a parameter the trial excites
-//! within 10 % of the simulator's; the force scale held; the held-out
-//! prediction better than the starting profile's.
+//! within 10 % of the simulator's (with the course's noise taken as fixed
+//! rather than following the speed, the yaw damping and the mass came out
+//! 14 % and 12 % low); the force scale held; the held-out prediction better
+//! than the starting profile's.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -47,7 +49,9 @@ fn identify(dir: &Path, log: &str, out: &str) -> serde_json::Value {
     serde_json::from_str(&json).unwrap()
 }
 
-/// The parameter `name` of a report: `(scale, sigma, verdict)`.
+/// The parameter `name` of a report: `(scale, sigma, verdict)`; the sigma
+/// infinite where the report has none (`null`: a parameter the trial left
+/// without curvature).
 fn parameter(report: &serde_json::Value, name: &str) -> (f64, f64, String) {
     let p = report["parameters"]
         .as_array()
@@ -57,7 +61,7 @@ fn parameter(report: &serde_json::Value, name: &str) -> (f64, f64, String) {
         .unwrap_or_else(|| panic!("{name} is reported"));
     (
         p["scale"].as_f64().unwrap(),
-        p["sigma"].as_f64().unwrap(),
+        p["sigma"].as_f64().unwrap_or(f64::INFINITY),
         p["verdict"].as_str().unwrap().to_owned(),
     )
 }
@@ -86,6 +90,16 @@ fn a_manoeuvring_trial_identifies_the_hull_resistance_and_holds_the_force_scale(
         "surge damping x{surge} (truth x1.6)"
     );
     assert!(surge_sigma < 0.05, "{surge_sigma}");
+    // The turns and the zig-zag excite the yaw damping, the steps of
+    // thrust the mass: each within 10 % of the simulator's.
+    for (name, truth) in [("yaw damping", 0.7), ("mass and inertia", 2.0)] {
+        let (scale, _, verdict) = parameter(&report, name);
+        assert_eq!(verdict, "identified", "{name}");
+        assert!(
+            (scale / truth - 1.0).abs() < 0.10,
+            "{name} x{scale} (truth x{truth})"
+        );
+    }
     let (thrust, _, verdict) = parameter(&report, "thrust coefficients");
     assert_eq!((thrust, verdict.as_str()), (1.0, "held"));
     // What the identified profile gains on the held-out part.

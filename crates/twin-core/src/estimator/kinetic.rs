@@ -592,7 +592,8 @@ impl KineticBase {
     }
 
     /// One step to `fix`, `dt_s` after the estimate, driven by `input`. A
-    /// current or heading offset that is off stays exactly zero.
+    /// current or heading offset that is off stays exactly zero. The
+    /// course's noise is set for the fix's speed ([`Self::course_variance`]).
     pub fn step(
         &self,
         state: &mut KineticState,
@@ -600,6 +601,7 @@ impl KineticBase {
         fix: &LocalFix,
         dt_s: f64,
     ) -> Result<KineticReport, AekfError> {
+        state.measurement_noise[(meas::COG, meas::COG)] = self.course_variance(fix);
         let report = self
             .filter
             .step(state, input, &self.measurement(fix), dt_s)?;
@@ -611,6 +613,26 @@ impl KineticBase {
             state.x[idx::HEADING_BIAS] = 0.0;
         }
         Ok(report)
+    }
+
+    /// The variance of `fix`'s course, rad²: the configured one, or, where
+    /// larger, the speed's over the speed squared. A receiver measures one
+    /// velocity over ground, with about the same noise along and across
+    /// the track; the speed is its length and the course its direction, so
+    /// the course's noise is the velocity's divided by the speed, and grows
+    /// as the vessel slows. At a fixed course noise, below about 1.5 m/s the
+    /// filter took that noise for yaw, let the heading wander with a
+    /// current across the track, and on a straight run drifted the losses
+    /// and the current together (docs/model.md section 10).
+    pub fn course_variance(&self, fix: &LocalFix) -> f64 {
+        let r = &self.filter.config.measurement_noise;
+        let configured = r[(meas::COG, meas::COG)];
+        match fix.sog_mps {
+            Some(sog) if self.gate.course_available(fix) && sog > 0.0 => {
+                configured.max(r[(meas::SOG, meas::SOG)] / (sog * sog))
+            }
+            _ => configured,
+        }
     }
 
     /// The losses of `state` as a controller reads them ([`LossReading`]).
@@ -796,6 +818,41 @@ impl ShaftAccumulator {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geodesy::NorthEast;
+
+    /// The course's variance is the configured one at cruise speed, the
+    /// speed's variance over the speed squared where that is larger (a
+    /// slow vessel), and the configured one where the course is not used.
+    #[test]
+    fn the_course_is_as_noisy_as_the_velocity_over_the_speed() {
+        let config = KineticConfig::otter();
+        let gate = CourseGate { min_sog_mps: 0.3 };
+        let base = KineticBase::new(&config, gate, KineticOptions::live(true)).unwrap();
+        let r = config.filter.measurement_noise;
+        let (course, speed) = (r[(meas::COG, meas::COG)], r[(meas::SOG, meas::SOG)]);
+        let fix = |sog_mps: Option<f64>| LocalFix {
+            time_s: 0.0,
+            position: NorthEast {
+                north_m: 0.0,
+                east_m: 0.0,
+            },
+            position_measured: true,
+            sog_mps,
+            cog_rad: Some(0.3),
+            heading_rad: None,
+            yaw_rate_radps: None,
+            stw_mps: None,
+        };
+        // 0.05 m/s over 3 m/s is 0.017 rad, within the configured 0.03.
+        assert_eq!(base.course_variance(&fix(Some(3.0))), course);
+        // At 0.8 m/s the velocity's noise gives 0.0625 rad.
+        let slow = base.course_variance(&fix(Some(0.8)));
+        assert!((slow - speed / 0.64).abs() < 1e-15, "{slow}");
+        assert!(slow > 4.0 * course);
+        // Below the gate's speed the course is not used.
+        assert_eq!(base.course_variance(&fix(Some(0.1))), course);
+        assert_eq!(base.course_variance(&fix(None)), course);
+    }
 
     /// The Otter's velocity noise written in [`KineticConfig::otter_with`]
     /// is the formula of [`harbour_velocity_noise`] for its mass matrix,
