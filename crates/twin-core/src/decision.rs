@@ -293,7 +293,6 @@ impl FaultDecider {
     }
 }
 
-/// The standard normal cumulative distribution, by the complementary error
 /// The stronger of two judgements (module doc): a fault or suspect from
 /// either wins; nominal needs one judgement to show it and the other not to
 /// show worse.
@@ -305,6 +304,7 @@ fn combine(a: Option<ThrusterStatus>, b: Option<ThrusterStatus>) -> Option<Thrus
     }
 }
 
+/// The standard normal cumulative distribution, by the complementary error
 /// function of Numerical Recipes (`erfc` with fractional error below 1.2e-7).
 pub fn normal_cdf(z: f64) -> f64 {
     if z.is_nan() {
