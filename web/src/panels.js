@@ -111,7 +111,10 @@ export class Alarms {
 /** Findings: `twin/finding` (twin_wire::outputs::FindingsMessage): what
  *  the daemon's diagnosis of the recent data named (cause, parameters with
  *  their sigma, the gain on held-out data); an empty list when the nominal
- *  model explains the data. Absent until the daemon publishes one. */
+ *  model explains the data; and, where the findings leave the held-out
+ *  residuals well outside what the filter expects (`unexplained`), that
+ *  figure and the biased components. Absent until the daemon publishes
+ *  one. */
 export class Findings {
   constructor(root, store) {
     this.root = root;
@@ -143,7 +146,22 @@ export class Findings {
     ]
       .filter(Boolean)
       .join(' · ');
-    para('muted', `${when}${list.length ? `${list.length} finding${list.length > 1 ? 's' : ''}` : 'the nominal model explains the data'}${what ? ` · ${what}` : ''}`);
+    const u = f.unexplained;
+    const verdict = list.length
+      ? `${list.length} finding${list.length > 1 ? 's' : ''}`
+      : u
+        ? 'no cause of the catalogue found'
+        : 'the nominal model explains the data';
+    para('muted', `${when}${verdict}${what ? ` · ${what}` : ''}`);
+    if (u) {
+      // The findings leave the held-out residuals outside what the filter
+      // expects: the model is wrong in a way no cause describes.
+      const biased = (Array.isArray(u.biased) ? u.biased : [])
+        .map((b) => `${b.component} ${Number.isFinite(b.bias_z) ? b.bias_z.toFixed(1) : b.bias_z} SE`)
+        .join(', ');
+      const p = para('unexplained', `Unexplained: held-out NIS/dof ${Number.isFinite(u.nis_per_dof) ? u.nis_per_dof.toFixed(2) : u.nis_per_dof}${biased ? ` · biased: ${biased}` : ''}`);
+      p.dataset.testid = 'unexplained';
+    }
     const num = (x) => (Math.abs(x) < 10 ? x.toFixed(3) : x.toFixed(1));
     for (const x of list) {
       const div = document.createElement('div');

@@ -84,6 +84,12 @@ pub const BLOCKS: &[Block] = &[
         shape: Shape::Fenced,
     },
     Block {
+        name: "diagnose-perturbed-othersim",
+        file: "docs/accuracy.md",
+        command: "cargo test -q -p twin-cli --test hidden_effects_othersim hidden_effects_on_changed -- --nocapture 2>/dev/null | grep -E '^(draw|diagnose-perturbed-othersim)'",
+        shape: Shape::Fenced,
+    },
+    Block {
         name: "bench-core",
         file: "docs/performance.md",
         command: "cargo run --release -q -p twin-bench -- core",
