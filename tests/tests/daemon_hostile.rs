@@ -507,7 +507,7 @@ async fn a_restart_mid_trial_ends_where_an_uninterrupted_run_ends() {
     let never_stopped = offline(&msgs);
     let report = never_stopped.fault_report(never_stopped.state_report().unwrap().time_s);
     let port = &report.thrusters[0];
-    let uninterrupted = offline_fault("restarted", &msgs);
+    let uninterrupted = FaultMessage::new("restarted", &report, true);
     let (restarted, whole) = (
         end.unwrap().thrusters.port.loss.unwrap(),
         uninterrupted.thrusters.port.loss.unwrap(),

@@ -36,8 +36,7 @@ mod perturbed;
 
 use hidden::{Hidden, describe, judge, named};
 use perturbed::{
-    Outcome as ChangedOutcome, Perturbation, draw_perturbation, judge_model, report,
-    without_model_causes,
+    Outcome as ChangedOutcome, Perturbation, draw_perturbation, judge_on_vessel, report,
 };
 
 use std::path::{Path, PathBuf};
@@ -399,7 +398,7 @@ fn hidden_effects_on_changed_vessels_of_the_independent_simulator() {
     let results: Vec<ChangedOutcome> = alternating(&draws, |(i, h, p, seed)| {
         let log = simulate_vessel(&[*h], *p, *seed, &dir, &format!("changed-{i:02}"));
         let r = diagnose_log(&log);
-        let verdict = judge(*h, &without_model_causes(&r)).and_then(|()| judge_model(*p, &r));
+        let verdict = judge_on_vessel(*h, *p, &r);
         (*i, *h, *p, verdict, named(&r))
     });
     let control_failures = report("diagnose-perturbed-othersim", &results);

@@ -22,10 +22,8 @@ mod perturbed;
 #[path = "common/twin_sim_draws.rs"]
 mod twin_sim_draws;
 
-use hidden::{Hidden, judge, named};
-use perturbed::{
-    Outcome, Perturbation, draw_perturbation, judge_model, report, without_model_causes,
-};
+use hidden::{Hidden, named};
+use perturbed::{Outcome, Perturbation, draw_perturbation, judge_on_vessel, report};
 use twin_sim::VesselSpec;
 use twin_sim_draws::{apply, base, diagnose_scenario, draw, on_two_threads};
 
@@ -54,7 +52,7 @@ fn run_draw(i: usize, h: Hidden, p: Option<Perturbation>, seed: u64) -> Outcome 
         sc.vessel = Some(spec);
     }
     let r = diagnose_scenario(&sc, &format!("draw-{i}"));
-    let verdict = judge(h, &without_model_causes(&r)).and_then(|()| judge_model(p, &r));
+    let verdict = judge_on_vessel(h, p, &r);
     (i, h, p, verdict, named(&r))
 }
 

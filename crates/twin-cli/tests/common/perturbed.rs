@@ -9,10 +9,10 @@ use rand::Rng;
 use rand::rngs::StdRng;
 use twin_cli::diagnose::DiagnoseReport;
 
-use super::hidden::{Hidden, describe};
+use super::hidden::{Hidden, describe, judge};
 
 /// The causes that are the vessel's own parameters.
-pub const MODEL_CAUSES: [&str; 3] = ["surge_damping", "yaw_damping", "mass"];
+const MODEL_CAUSES: [&str; 3] = ["surge_damping", "yaw_damping", "mass"];
 
 /// The vessel's change in a draw: which model cause it is, and its factor.
 #[derive(Debug, Clone, Copy)]
@@ -34,7 +34,7 @@ pub fn draw_perturbation(rng: &mut StdRng) -> Perturbation {
 }
 
 /// `p` as the draw's listing shows it.
-pub fn describe_vessel(p: Option<Perturbation>) -> String {
+fn describe_vessel(p: Option<Perturbation>) -> String {
     p.map_or("the profile's vessel".to_string(), |p| {
         format!("{} x {:.2}", p.cause, p.scale)
     })
@@ -42,7 +42,7 @@ pub fn describe_vessel(p: Option<Perturbation>) -> String {
 
 /// Judges the model-parameter findings against the perturbation; `Ok`
 /// says whether the perturbation was named.
-pub fn judge_model(p: Option<Perturbation>, r: &DiagnoseReport) -> Result<bool, String> {
+fn judge_model(p: Option<Perturbation>, r: &DiagnoseReport) -> Result<bool, String> {
     let mut named = false;
     for f in r
         .findings
@@ -63,12 +63,24 @@ pub fn judge_model(p: Option<Perturbation>, r: &DiagnoseReport) -> Result<bool, 
 }
 
 /// The report without its model-parameter findings (judged apart).
-pub fn without_model_causes(r: &DiagnoseReport) -> DiagnoseReport {
+fn without_model_causes(r: &DiagnoseReport) -> DiagnoseReport {
     let mut others = r.clone();
     others
         .findings
         .retain(|f| !MODEL_CAUSES.contains(&f.cause.as_str()));
     others
+}
+
+/// Judges a diagnosis of hidden effect `h` on a vessel changed by `p`
+/// (none: the control): the effect by the hidden-effect bars, the
+/// model-parameter findings by [`judge_model`]; `Ok` says whether the
+/// change was named.
+pub fn judge_on_vessel(
+    h: Hidden,
+    p: Option<Perturbation>,
+    r: &DiagnoseReport,
+) -> Result<bool, String> {
+    judge(h, &without_model_causes(r)).and_then(|()| judge_model(p, r))
 }
 
 /// One draw on a possibly changed vessel: its index, effect, change,
