@@ -395,10 +395,80 @@ pub struct PredictionComparison {
     /// Extended twin: the position error at the horizon in units of the
     /// forecast's own standard deviation, `[north, east]`.
     pub extended_final_error_sigmas: [f64; 2],
+    /// Seed's method with its derived input held at the split (what it
+    /// could forecast live, without the track ahead): RMSE per state.
+    pub seed_held_rmse: [f64; 4],
+    /// Extended twin with the shaft speeds of the last interval before the
+    /// split held (its live forecast, as `twin/prediction` publishes it):
+    /// RMSE per state.
+    pub extended_held_rmse: [f64; 4],
+    /// The simulator's own vessel from the true state at the split, on the
+    /// recorded commands, in water with no disturbance ahead
+    /// ([`twin_sim::replay_without_disturbance`]): RMSE per state.
+    pub replay_rmse: [f64; 4],
 }
 
 /// The seed's published Table 4.9 (RMSE %, x, y, U, psi).
 pub const SEED_TABLE_4_9_PCT: [f64; 4] = [0.35, 9.01, 3.5, 2.61];
+
+/// The recorded inputs a forecast from the split runs through, one per GNSS
+/// interval after the twins' last fix, and the inputs a live forecast
+/// would hold instead.
+struct HorizonInputs {
+    /// Measured shaft speeds, the mean over each interval.
+    kinetic: Vec<(f64, ShaftSpeeds)>,
+    /// The seed method's inputs, derived from the fixes over the horizon.
+    seed: Vec<(f64, KinematicInput)>,
+    /// The mean measured shaft speeds over the last interval before the
+    /// split.
+    shafts_at_split: ShaftSpeeds,
+    /// The seed method's last derived input before the split.
+    seed_input_at_split: KinematicInput,
+}
+
+impl HorizonInputs {
+    /// The inputs of `run` after the twins' last fix `t_start` (at or
+    /// before `t_split`).
+    fn recorded(run: &SimRun, t_split: f64, t_start: f64) -> Self {
+        let props: Vec<_> = run.measured_propellers().copied().collect();
+        let mut deriver = twin_core::inputs::InputDeriver::new(TwinConfig::default().seed.inputs)
+            .expect("valid derivation");
+        // Prime the derivation with the fixes before the split so its
+        // low-pass is in steady state, as it is in the calibrated twin.
+        let mut seed_input_at_split = KinematicInput::default();
+        for f in run.gnss_fixes().filter(|f| f.time_s <= t_split) {
+            if let (Some(s), Some(c)) = (f.sog_mps, f.cog_rad)
+                && let Some(u) = deriver.push(f.time_s, s, wrap_pi(c))
+            {
+                seed_input_at_split = u;
+            }
+        }
+        let mut out = Self {
+            kinetic: Vec::new(),
+            seed: Vec::new(),
+            shafts_at_split: ShaftSpeeds::default(),
+            seed_input_at_split,
+        };
+        let mut t_prev = t_start;
+        for f in run.gnss_fixes().filter(|f| f.time_s > t_split) {
+            if out.kinetic.is_empty() {
+                let interval_s = f.time_s - t_start;
+                out.shafts_at_split = mean_shaft_speeds(&props, t_start - interval_s, t_start);
+            }
+            out.kinetic.push((
+                f.time_s - t_prev,
+                mean_shaft_speeds(&props, t_prev, f.time_s),
+            ));
+            let u = match (f.sog_mps, f.cog_rad) {
+                (Some(s), Some(c)) => deriver.push(f.time_s, s, wrap_pi(c)).unwrap_or_default(),
+                _ => KinematicInput::default(),
+            };
+            out.seed.push((f.time_s - t_prev, u));
+            t_prev = f.time_s;
+        }
+        out
+    }
+}
 
 /// Runs the prediction comparison on the broken-port S-manoeuvre with
 /// noise seed `seed` and a horizon of `horizon_s` at the end of the run, in
@@ -414,7 +484,8 @@ pub fn prediction_comparison(seed: u64, horizon_s: f64, calm_water: bool) -> Pre
     if calm_water {
         sc.disturbance = None;
     }
-    let run = twin_sim::simulate(&sc).expect("valid scenario");
+    let plan = sc.validate().expect("valid scenario");
+    let run = twin_sim::run_plan(&plan);
     let t_end = run.truth.last().map(|t| t.time_s).unwrap_or(0.0);
     let t_split = t_end - horizon_s;
 
@@ -433,48 +504,56 @@ pub fn prediction_comparison(seed: u64, horizon_s: f64, calm_water: bool) -> Pre
             _ => {}
         }
     }
-    // The recorded inputs over the horizon, one per GNSS interval.
-    let fixes: Vec<_> = run
-        .gnss_fixes()
-        .filter(|f| f.time_s > t_split)
-        .copied()
-        .collect();
-    let props: Vec<_> = run.measured_propellers().copied().collect();
-    let mut t_prev = seed_twin
+    let t_start = seed_twin
         .state_report()
         .map(|s| s.time_s)
         .unwrap_or(t_split);
-    let mut kinetic_inputs = Vec::new();
-    let mut seed_inputs = Vec::new();
-    let mut deriver = twin_core::inputs::InputDeriver::new(TwinConfig::default().seed.inputs)
-        .expect("valid derivation");
-    // Prime the derivation with the fixes before the split so its low-pass
-    // is in steady state, as it is in the calibrated twin.
-    for f in run.gnss_fixes().filter(|f| f.time_s <= t_split) {
-        if let (Some(s), Some(c)) = (f.sog_mps, f.cog_rad) {
-            deriver.push(f.time_s, s, wrap_pi(c));
-        }
-    }
-    for f in &fixes {
-        kinetic_inputs.push((
-            f.time_s - t_prev,
-            mean_shaft_speeds(&props, t_prev, f.time_s),
-        ));
-        let u = match (f.sog_mps, f.cog_rad) {
-            (Some(s), Some(c)) => deriver.push(f.time_s, s, wrap_pi(c)).unwrap_or_default(),
-            _ => KinematicInput::default(),
-        };
-        seed_inputs.push((f.time_s - t_prev, u));
-        t_prev = f.time_s;
-    }
-    let kin_points = kinetic.forecast_kinetic(kinetic_inputs);
-    let seed_points = seed_twin.forecast_seed(seed_inputs);
+    let inputs = HorizonInputs::recorded(&run, t_split, t_start);
+    let held = |n: usize| std::iter::repeat_n(inputs.shafts_at_split, n);
+    let kinetic_held_inputs: Vec<_> = inputs
+        .kinetic
+        .iter()
+        .map(|(dt, _)| *dt)
+        .zip(held(inputs.kinetic.len()))
+        .collect();
+    let seed_held_inputs: Vec<_> = inputs
+        .seed
+        .iter()
+        .map(|(dt, _)| (*dt, inputs.seed_input_at_split))
+        .collect();
+    let kin_held_points = kinetic.forecast_kinetic(kinetic_held_inputs);
+    let kin_points = kinetic.forecast_kinetic(inputs.kinetic);
+    let seed_points = seed_twin.forecast_seed(inputs.seed);
+    let seed_held_points = seed_twin.forecast_seed(seed_held_inputs);
     // Forecasts are compared with the truth in the simulator's frame (the
     // twins' frames start at their first, noisy, fix).
     let sim_frame = LocalFrame::new(run.origin).expect("valid origin");
+    let in_sim_frame = |points: &[twin_core::twin::ForecastPoint]| -> Vec<[f64; 5]> {
+        points
+            .iter()
+            .map(|p| {
+                let local = sim_frame.to_local(p.position);
+                [p.time_s, local.north_m, local.east_m, p.sog_mps, p.cog_rad]
+            })
+            .collect()
+    };
+    let split_index = run
+        .truth
+        .iter()
+        .position(|t| t.time_s >= t_start - 1e-6)
+        .unwrap_or(run.truth.len());
+    let commands: Vec<_> = run.commanded_propellers().copied().collect();
+    let replay: Vec<[f64; 5]> =
+        twin_sim::replay_without_disturbance(&plan, &run.truth[split_index..], &commands)
+            .iter()
+            .map(|t| [t.time_s, t.north_m, t.east_m, t.sog_mps, t.cog_rad])
+            .collect();
 
-    let (seed_rmse, seed_rmse_pct) = score(&seed_points, &run, &sim_frame);
-    let (extended_rmse, extended_rmse_pct) = score(&kin_points, &run, &sim_frame);
+    let (seed_rmse, seed_rmse_pct) = score(&in_sim_frame(&seed_points), &run);
+    let (extended_rmse, extended_rmse_pct) = score(&in_sim_frame(&kin_points), &run);
+    let (seed_held_rmse, _) = score(&in_sim_frame(&seed_held_points), &run);
+    let (extended_held_rmse, _) = score(&in_sim_frame(&kin_held_points), &run);
+    let (replay_rmse, _) = score(&replay, &run);
     let extended_final_error_sigmas = kin_points
         .last()
         .and_then(|p| {
@@ -496,27 +575,24 @@ pub fn prediction_comparison(seed: u64, horizon_s: f64, calm_water: bool) -> Pre
         extended_rmse,
         extended_rmse_pct,
         extended_final_error_sigmas,
+        seed_held_rmse,
+        extended_held_rmse,
+        replay_rmse,
     }
 }
 
-/// RMSE of forecast `points` against the truth of `run` per state `[north,
-/// east, speed, course]`, and as % of the true state's range over them.
-fn score(
-    points: &[twin_core::twin::ForecastPoint],
-    run: &SimRun,
-    sim_frame: &LocalFrame,
-) -> ([f64; 4], [f64; 4]) {
+/// RMSE of forecast `points` (`[time s, north m, east m, speed m/s, course
+/// rad]`, in the simulator's frame) against the truth of `run` per state
+/// `[north, east, speed, course]`, and as % of the true state's range over
+/// them.
+fn score(points: &[[f64; 5]], run: &SimRun) -> ([f64; 4], [f64; 4]) {
     let mut sq = [0.0f64; 4];
     let mut lo = [f64::MAX; 4];
     let mut hi = [f64::MIN; 4];
     let mut n = 0.0f64;
     let mut course_unwrapped = None::<f64>;
-    for p in points {
-        let Some(tr) = run
-            .truth
-            .iter()
-            .find(|t| (t.time_s - p.time_s).abs() < 1e-6)
-        else {
+    for &[time_s, north_m, east_m, sog_mps, cog_rad] in points {
+        let Some(tr) = run.truth.iter().find(|t| (t.time_s - time_s).abs() < 1e-6) else {
             continue;
         };
         let c = match course_unwrapped {
@@ -525,12 +601,11 @@ fn score(
         };
         course_unwrapped = Some(c);
         let truth = [tr.north_m, tr.east_m, tr.sog_mps, c];
-        let local = sim_frame.to_local(p.position);
         let err = [
-            local.north_m - tr.north_m,
-            local.east_m - tr.east_m,
-            p.sog_mps - tr.sog_mps,
-            wrap_pi(p.cog_rad - tr.cog_rad),
+            north_m - tr.north_m,
+            east_m - tr.east_m,
+            sog_mps - tr.sog_mps,
+            wrap_pi(cog_rad - tr.cog_rad),
         ];
         for i in 0..4 {
             sq[i] += err[i] * err[i];
@@ -753,41 +828,65 @@ pub fn matrix_markdown(seeds: u64) -> String {
     out
 }
 
-/// Prediction after calibration as the seed's Table 4.9, as a markdown
-/// table (`cargo xtask prediction`): RMSE over each horizon, means over
-/// `seeds` noise seeds, in calm and in harbour water.
+/// Prediction after calibration as the seed's Table 4.9, as markdown
+/// (`cargo xtask prediction`): RMSE over each horizon, means over `seeds`
+/// noise seeds, in calm and in harbour water; then the horizontal position
+/// RMSE (per seed, then the mean) of every forecast, beside what each
+/// knows of what lies ahead.
 pub fn prediction_markdown(seeds: u64) -> String {
     use std::fmt::Write;
+    let mut rows = Vec::new();
+    for calm in [true, false] {
+        for horizon in [10.0, 30.0, 60.0] {
+            let (mut mean, mut horizontal) = ([[0.0; 4]; 5], [0.0; 5]);
+            for seed in 0..seeds {
+                let p = prediction_comparison(1000 + seed, horizon, calm);
+                let runs = [
+                    p.seed_rmse,
+                    p.extended_rmse,
+                    p.replay_rmse,
+                    p.seed_held_rmse,
+                    p.extended_held_rmse,
+                ];
+                for ((m, h), r) in mean.iter_mut().zip(&mut horizontal).zip(runs) {
+                    for i in 0..4 {
+                        m[i] += r[i] / seeds as f64;
+                    }
+                    *h += r[0].hypot(r[1]) / seeds as f64;
+                }
+            }
+            rows.push((
+                if calm { "calm" } else { "harbour" },
+                horizon,
+                mean,
+                horizontal,
+            ));
+        }
+    }
     let mut out = String::new();
     let _ = writeln!(
         out,
         "| water | horizon | seed method RMSE [north m, east m, SOG m/s, COG rad] | extended twin RMSE |"
     );
     let _ = writeln!(out, "|---|---|---|---|");
-    for calm in [true, false] {
-        for horizon in [10.0, 30.0, 60.0] {
-            let (mut s, mut e) = ([0.0; 4], [0.0; 4]);
-            for seed in 0..seeds {
-                let p = prediction_comparison(1000 + seed, horizon, calm);
-                for i in 0..4 {
-                    s[i] += p.seed_rmse[i] / seeds as f64;
-                    e[i] += p.extended_rmse[i] / seeds as f64;
-                }
-            }
-            let _ = writeln!(
-                out,
-                "| {} | {horizon:.0} s | [{:.2}, {:.2}, {:.3}, {:.3}] | [{:.2}, {:.2}, {:.3}, {:.3}] |",
-                if calm { "calm" } else { "harbour" },
-                s[0],
-                s[1],
-                s[2],
-                s[3],
-                e[0],
-                e[1],
-                e[2],
-                e[3]
-            );
-        }
+    for (water, horizon, [s, e, ..], _) in &rows {
+        let _ = writeln!(
+            out,
+            "| {water} | {horizon:.0} s | [{:.2}, {:.2}, {:.3}, {:.3}] | [{:.2}, {:.2}, {:.3}, {:.3}] |",
+            s[0], s[1], s[2], s[3], e[0], e[1], e[2], e[3]
+        );
+    }
+    let _ = writeln!(out);
+    let _ = writeln!(
+        out,
+        "| water | horizon | seed method, inputs derived from the track ahead | extended twin, recorded shaft speeds | the simulated vessel itself, recorded commands, no disturbance ahead | seed method, input held | extended twin, shaft speeds held (live) |"
+    );
+    let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|");
+    for (water, horizon, _, [s, e, r, sh, eh]) in &rows {
+        let _ = writeln!(
+            out,
+            "| {water} | {horizon:.0} s | {s:.2} | {e:.2} | {r:.2} | {sh:.2} | {eh:.2} |"
+        );
     }
     out
 }

@@ -6,9 +6,11 @@
 //! Two facts shape these tests (docs/accuracy.md): the seed method's
 //! "recorded inputs" are derived from the GNSS track over the horizon itself,
 //! so its prediction is fed the future it predicts; and the Otter's hull is
-//! directionally unstable in open loop (the Munk moment), so the extended
-//! twin's open-loop forecast through the recorded propeller speeds amplifies
-//! any heading error over tens of seconds. Its bands widen accordingly.
+//! directionally unstable in open loop (the Munk moment), so an open-loop
+//! forecast through the recorded commands, which the autopilot made to
+//! answer gusts the forecast does not know, turns away from the truth over
+//! tens of seconds, the simulated vessel's own replay as much as the
+//! extended twin's. Its bands widen accordingly.
 
 use xtask::trials::{
     Cell, TrialPath, forecast_coverage, loss_sets, prediction_comparison, seed_sets,
@@ -49,11 +51,21 @@ fn forecast_bands_hold_the_truth_at_their_stated_rates() {
 /// extended twin's position errors are a fraction of the seed method's; in
 /// harbour water neither predicts a minute ahead well, and the extended twin
 /// says so (the truth stays within three of its standard deviations).
+///
+/// Why the seed method's harbour figures are the better ones: its inputs
+/// are derived from the track it predicts (held at the split instead, its
+/// 30 s and 60 s errors grow past those figures), while the extended twin's
+/// error at 30 s and 60 s is that of the simulated vessel itself, started
+/// from its true state on the recorded commands with calm water ahead
+/// (within 25 %): the disturbance to come, which the recorded commands
+/// answer, is what neither knows. In calm water that replay is the truth.
 #[test]
 fn prediction_after_calibration_against_the_seed_method() {
+    let horizontal = |r: [f64; 4]| r[0].hypot(r[1]);
     for calm in [true, false] {
         for horizon in [10.0, 30.0, 60.0] {
             let (mut seed_rmse, mut ext_rmse, mut worst_z) = ([0.0; 4], [0.0; 4], 0.0f64);
+            let (mut seed_held_m, mut replay_m) = (0.0, 0.0);
             let seeds = [1000, 1001, 1002];
             for seed in seeds {
                 let p = prediction_comparison(seed, horizon, calm);
@@ -61,6 +73,8 @@ fn prediction_after_calibration_against_the_seed_method() {
                     seed_rmse[i] += p.seed_rmse[i] / seeds.len() as f64;
                     ext_rmse[i] += p.extended_rmse[i] / seeds.len() as f64;
                 }
+                seed_held_m += horizontal(p.seed_held_rmse) / seeds.len() as f64;
+                replay_m += horizontal(p.replay_rmse) / seeds.len() as f64;
                 worst_z = worst_z
                     .max(p.extended_final_error_sigmas[0].max(p.extended_final_error_sigmas[1]));
             }
@@ -69,7 +83,21 @@ fn prediction_after_calibration_against_the_seed_method() {
                  extended twin {ext_rmse:.3?}; extended final error {worst_z:.2} sigma at worst",
                 if calm { "calm" } else { "harbour" }
             );
+            let (seed_m, ext_m) = (horizontal(seed_rmse), horizontal(ext_rmse));
+            println!(
+                "  position RMSE, m: seed method {seed_m:.2}, held input {seed_held_m:.2}; \
+                 extended twin {ext_m:.2}; the vessel itself without the disturbance ahead {replay_m:.2}"
+            );
             assert!(worst_z < 3.0, "{worst_z}");
+            if calm {
+                assert!(replay_m < 0.05, "{replay_m}");
+            }
+            if horizon >= 30.0 {
+                assert!(seed_held_m > seed_m, "{seed_held_m} vs {seed_m}");
+                if !calm {
+                    assert!(ext_m <= 1.25 * replay_m, "{ext_m} vs {replay_m}");
+                }
+            }
             if calm && horizon == 60.0 {
                 assert!(ext_rmse[0] < 0.5 * seed_rmse[0] && ext_rmse[1] < 0.5 * seed_rmse[1]);
             }

@@ -57,4 +57,4 @@ pub use scenario::{
     YawRateSpec,
 };
 pub use sensors::{HeadingSample, SensorEvent, YawRateSample, radps_to_rpm};
-pub use sim::{SimRun, TruthSample, run_plan, simulate};
+pub use sim::{SimRun, TruthSample, replay_without_disturbance, run_plan, simulate};

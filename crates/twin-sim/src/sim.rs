@@ -489,6 +489,97 @@ impl<'a> Run<'a> {
     }
 }
 
+/// The plan's vessel driven open loop from the true state of `truth[0]` by
+/// the recorded shaft speed `commands` (each held until the next; the
+/// trial's `PropellerCommanded` events, at the control rate when the
+/// propellers are logged at it) and the losses of `truth`, in the plan's
+/// current and wind but with none of its random disturbance: one sample for
+/// each later instant of `truth`.
+///
+/// Run on a trial's own truth from a split onwards, this is what the
+/// vessel itself would have done on the same commands had the water ahead
+/// been calm: its distance from the truth is what the disturbance to come
+/// makes unknowable to any forecast from the commands (docs/accuracy.md,
+/// "Prediction after calibration").
+pub fn replay_without_disturbance(
+    plan: &Plan,
+    truth: &[TruthSample],
+    commands: &[PropellerSpeeds],
+) -> Vec<TruthSample> {
+    let Some(first) = truth.first() else {
+        return Vec::new();
+    };
+    let model = OtterModel::new(plan.vessel.clone());
+    let mut x = StateVector::from_column_slice(&[
+        first.north_m,
+        first.east_m,
+        first.heading_rad,
+        first.u_mps,
+        first.v_mps,
+        first.r_radps,
+        first.shaft_radps[0],
+        first.shaft_radps[1],
+    ]);
+    let elapsed = |c: &PropellerSpeeds| c.time_s - plan.start_unix_s;
+    let command_at = |t_s: f64| {
+        commands
+            .iter()
+            .rev()
+            .find(|c| elapsed(c) <= t_s + SAME_INSTANT_S)
+            .map_or(first.shaft_cmd_radps, |c| [c.port_radps, c.starboard_radps])
+    };
+    let mut out = Vec::with_capacity(truth.len().saturating_sub(1));
+    for pair in truth.windows(2) {
+        let (from, to) = (&pair[0], &pair[1]);
+        // Integrate piecewise between the command changes inside the span.
+        let mut instants = vec![from.elapsed_s];
+        instants.extend(commands.iter().map(elapsed).filter(|t| {
+            *t > from.elapsed_s + SAME_INSTANT_S && *t < to.elapsed_s - SAME_INSTANT_S
+        }));
+        instants.push(to.elapsed_s);
+        let mut act = Actuation {
+            n_cmd_radps: command_at(from.elapsed_s),
+            loss: from.loss,
+        };
+        for piece in instants.windows(2) {
+            act.n_cmd_radps = command_at(piece[0]);
+            let span_s = piece[1] - piece[0];
+            let steps = ((span_s / plan.step_s) - 1e-9).ceil().max(1.0);
+            let h = span_s / steps;
+            for k in 0..steps as usize {
+                let t0 = piece[0] + k as f64 * h;
+                x = rk4_step(
+                    |ts, xs| {
+                        let (current, accel) = plan.current.at(ts);
+                        let env = Surroundings {
+                            current_ned_mps: current,
+                            current_accel_ned_mps2: accel,
+                            wind_force: plan.wind.map_or([0.0; 3], |w| {
+                                w.force(xs[idx::PSI], xs[idx::U], xs[idx::V])
+                            }),
+                            disturbance_force: [0.0; 3],
+                        };
+                        model.derivative(xs, &act, &env)
+                    },
+                    t0,
+                    &x,
+                    h,
+                );
+            }
+        }
+        out.push(truth_sample(
+            plan,
+            &model,
+            &x,
+            to.elapsed_s,
+            &act,
+            [0.0; 3],
+            None,
+        ));
+    }
+    out
+}
+
 fn body_motion(x: &StateVector) -> BodyMotion {
     BodyMotion {
         north_m: x[idx::NORTH],

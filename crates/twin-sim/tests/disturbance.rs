@@ -258,3 +258,47 @@ fn acceleration_density_of_the_default_for_the_otter() {
     assert!(coupled[(2, 2)] > 1.2 * q[2], "{coupled}");
     assert!(coupled[(1, 2)] < 0.0 && coupled[(1, 2)] == coupled[(2, 1)]);
 }
+
+/// Position error, m, of `replay` against the truth sample of the same time.
+fn replay_error_m(run: &SimRun, replay: &[twin_sim::TruthSample]) -> Vec<f64> {
+    replay
+        .iter()
+        .map(|p| {
+            let t = run
+                .truth
+                .iter()
+                .find(|t| (t.elapsed_s - p.elapsed_s).abs() < 1e-9)
+                .expect("a truth sample at each replayed instant");
+            (p.north_m - t.north_m).hypot(p.east_m - t.east_m)
+        })
+        .collect()
+}
+
+/// The replay without disturbance follows the truth where there is none (the
+/// commands held between truth samples instead of changing at the control
+/// rate are all that differs), and leaves it where the harbour's disturbance
+/// pushes the hull: what it measures is the disturbance's own effect.
+#[test]
+fn the_replay_without_disturbance_follows_the_truth_only_in_calm_water() {
+    let mut harbour = shipped("s-manoeuvre_new-broken");
+    assert!(harbour.disturbance.is_some());
+    let mut still = harbour.clone();
+    calm(&mut still);
+    harbour.duration_s = 160.0;
+    still.duration_s = 160.0;
+    let worst = |sc: &Scenario| {
+        let plan = sc.validate().unwrap();
+        let run = twin_sim::run_plan(&plan);
+        let from = run.truth.iter().position(|t| t.elapsed_s >= 100.0).unwrap();
+        let commands: Vec<_> = run.commanded_propellers().copied().collect();
+        let replay = twin_sim::replay_without_disturbance(&plan, &run.truth[from..], &commands);
+        assert_eq!(replay.len(), run.truth.len() - from - 1);
+        replay_error_m(&run, &replay)
+            .into_iter()
+            .fold(0.0f64, f64::max)
+    };
+    let (calm_m, harbour_m) = (worst(&still), worst(&harbour));
+    println!("worst replay error over 60 s: calm {calm_m:.3} m, harbour {harbour_m:.3} m");
+    assert!(calm_m < 0.5, "{calm_m}");
+    assert!(harbour_m > 5.0 * calm_m.max(0.1), "{harbour_m}");
+}
