@@ -171,7 +171,11 @@ pub mod wire {
 
     /// [`offline`] with the twin `config`.
     pub fn offline_with(msgs: &[(&'static str, Vec<u8>)], config: TwinConfig) -> VesselTwin {
-        let mut twin = VesselTwin::new(config).expect("valid config");
+        feed(VesselTwin::new(config).expect("valid config"), msgs)
+    }
+
+    /// `twin` after the offline path over `msgs`.
+    pub fn feed(mut twin: VesselTwin, msgs: &[(&'static str, Vec<u8>)]) -> VesselTwin {
         for (topic, bytes) in msgs {
             if *topic == "gnss" {
                 if let Ok(d) = decode_gnss(bytes) {

@@ -65,6 +65,20 @@ fn every_shipped_file_loads_and_is_documented() {
     }
 }
 
+/// The fleet's router keeps, with zenohd's storage manager, the keys on
+/// which the daemons of a fleet put their calibrations.
+#[test]
+fn the_fleet_router_stores_the_calibrations_the_daemons_put() {
+    let c = load("zenoh-router-fleet.json5");
+    assert_eq!(get(&c, "mode"), Value::from("router"));
+    let storage = get(&c, "plugins/storage_manager/storages/twin_calibrations");
+    let fleet = twind::settings::Settings::from_toml("[fleet]\nenabled = true\n").unwrap();
+    let key = fleet.fleet.calibration_key("otter-1").unwrap();
+    let stored = zenoh::key_expr::KeyExpr::try_from(storage["key_expr"].as_str().unwrap()).unwrap();
+    assert!(stored.includes(&zenoh::key_expr::KeyExpr::try_from(key.as_str()).unwrap()));
+    assert_eq!(storage["volume"], Value::from("memory"));
+}
+
 /// Item 6: the default is safe as shipped: a peer that listens on the
 /// loopback interface only and connects to nothing it discovers, so that
 /// nothing on the network can reach the daemon (Zenoh has no log-in

@@ -63,6 +63,8 @@ pub(crate) struct RawFleet {
     roster: Option<Vec<String>>,
     report_interval_s: Option<f64>,
     join_wait_s: Option<f64>,
+    share_calibrations: Option<bool>,
+    calibration_wait_s: Option<f64>,
 }
 
 /// `[fleet]`, validated.
@@ -86,9 +88,24 @@ pub struct FleetSettings {
     /// At start, how long to wait for the other daemons' tokens before
     /// serving, s.
     pub join_wait_s: f64,
+    /// Put each vessel's calibration on `{prefix}/calibration/{vessel}`
+    /// when the active owner saves it, and ask that key for it when a
+    /// vessel's twin starts (a storage on the routers keeps it:
+    /// docs/deploy.md); only with `enabled`.
+    pub share_calibrations: bool,
+    /// How long a starting twin waits for the network's calibration, s.
+    pub calibration_wait_s: f64,
 }
 
 impl FleetSettings {
+    /// The key of `vessel`'s calibration in the network,
+    /// `{prefix}/calibration/{vessel}`; `None` unless the daemon is in a
+    /// fleet that shares calibrations.
+    pub fn calibration_key(&self, vessel: &str) -> Option<String> {
+        (self.enabled && self.share_calibrations)
+            .then(|| format!("{}/calibration/{vessel}", self.prefix))
+    }
+
     pub(crate) fn from_raw(raw: RawFleet, prefix: &str) -> Result<Self, SettingsError> {
         let fleet_prefix = raw.prefix.unwrap_or_else(|| format!("{prefix}-fleet"));
         if twin_wire::keys::validate_vessel_id(&fleet_prefix).is_err() || fleet_prefix == prefix {
@@ -127,6 +144,8 @@ impl FleetSettings {
             roster,
             report_interval_s: seconds("fleet.report_interval_s", raw.report_interval_s, 5.0)?,
             join_wait_s: seconds("fleet.join_wait_s", raw.join_wait_s, 2.0)?,
+            share_calibrations: raw.share_calibrations.unwrap_or(true),
+            calibration_wait_s: seconds("fleet.calibration_wait_s", raw.calibration_wait_s, 2.0)?,
         })
     }
 }
@@ -640,12 +659,28 @@ mod tests {
                 "fleet.report_interval_s",
             ),
             ("[fleet]\njoin_wait_s = -1.0\n", "fleet.join_wait_s"),
+            (
+                "[fleet]\ncalibration_wait_s = 0.0\n",
+                "fleet.calibration_wait_s",
+            ),
         ] {
             let err = crate::settings::Settings::from_toml(text)
                 .unwrap_err()
                 .to_string();
             assert!(err.contains(key), "{text}: {err}");
         }
+        // Calibrations go to the network only from a fleet that shares them.
+        assert_eq!(s.fleet.calibration_key("otter-1"), None);
+        let shared = crate::settings::Settings::from_toml("[fleet]\nenabled = true\n").unwrap();
+        assert_eq!(
+            shared.fleet.calibration_key("otter-1").as_deref(),
+            Some("asv-fleet/calibration/otter-1")
+        );
+        let kept = crate::settings::Settings::from_toml(
+            "[fleet]\nenabled = true\nshare_calibrations = false\n",
+        )
+        .unwrap();
+        assert_eq!(kept.fleet.calibration_key("otter-1"), None);
         let err = crate::settings::Settings::from_toml("[fleet]\nbogus = 1\n")
             .unwrap_err()
             .to_string();

@@ -269,10 +269,9 @@ pub fn save(
         move |source| PersistError::Io { path, source }
     };
     std::fs::create_dir_all(dir).map_err(io(dir))?;
-    let file = CalibrationFile::new(vessel, calibration, profile);
-    let text = serde_json::to_string_pretty(&file).map_err(|e| PersistError::Format {
+    let text = encode(vessel, calibration, profile).map_err(|message| PersistError::Format {
         path: path_for(dir, vessel),
-        message: e.to_string(),
+        message,
     })?;
     let tmp = dir.join(format!(".{vessel}.json.tmp"));
     {
@@ -319,6 +318,27 @@ pub fn load(dir: &Path, vessel: &str, profile: &str) -> Result<Option<Calibratio
                 message,
             })
         }
+    }
+}
+
+/// The calibration file of `vessel` learnt with `profile`, as text: what
+/// [`save`] writes and a fleet daemon puts on the network.
+pub fn encode(vessel: &str, calibration: &Calibration, profile: &str) -> Result<String, String> {
+    serde_json::to_string_pretty(&CalibrationFile::new(vessel, calibration, profile))
+        .map_err(|e| e.to_string())
+}
+
+/// A calibration received from the network for `vessel`, checked as a
+/// file is ([`load`]): refused when it is not a calibration of that vessel
+/// or was learnt with another profile than `profile`.
+pub fn decode(bytes: &[u8], vessel: &str, profile: &str) -> Result<Calibration, String> {
+    let (c, learnt_with) = parse(bytes, vessel)?;
+    if learnt_with == profile {
+        Ok(c)
+    } else {
+        Err(format!(
+            "learnt with the profile {learnt_with}, not the vessel's {profile}"
+        ))
     }
 }
 
@@ -472,6 +492,20 @@ mod tests {
     /// A calibration learnt with one profile is not restored on another:
     /// it is kept aside, and the vessel starts a new one; a file from
     /// before profiles is the Otter's.
+    #[test]
+    fn a_calibration_from_the_network_is_checked_as_a_file_is() {
+        let text = encode("cat-1", &calibration(), CATAMARAN).unwrap();
+        assert_eq!(
+            decode(text.as_bytes(), "cat-1", CATAMARAN).unwrap(),
+            calibration()
+        );
+        let other_profile = decode(text.as_bytes(), "cat-1", OTTER).unwrap_err();
+        assert!(other_profile.contains(CATAMARAN), "{other_profile}");
+        let other_vessel = decode(text.as_bytes(), "cat-2", CATAMARAN).unwrap_err();
+        assert!(other_vessel.contains("cat-1"), "{other_vessel}");
+        assert!(decode(b"{\"vessel\": 1}", "cat-1", CATAMARAN).is_err());
+    }
+
     #[test]
     fn a_calibration_of_another_profile_is_kept_aside_not_restored() {
         let dir = std::env::temp_dir().join(format!("twind-profile-{}", std::process::id()));

@@ -195,6 +195,9 @@ pub struct VesselTask {
     last_event_wall: Instant,
     stale_published: bool,
     unsaved: bool,
+    /// The time of the last fix of the calibration the twin was restored
+    /// from (a file or the network), s.
+    restored_time_s: Option<f64>,
     monitor: Option<LiveMonitor>,
     diagnose_slots: Arc<Semaphore>,
     diagnosis: Option<oneshot::Receiver<Option<FindingsMessage>>>,
@@ -328,10 +331,12 @@ impl VesselTask {
         let (twin_config, profile) = settings.twin_for(id.as_str());
         let mut twin =
             VesselTwin::new(twin_config).expect("the settings' twin configuration was validated");
+        let mut restored_time_s = None;
         if let Some(dir) = &settings.persistence.dir {
             match persist::load(dir, id.as_str(), &profile.identity()) {
                 Ok(Some(calibration)) => {
                     tracing::info!(vessel = id.as_str(), theta = ?calibration.theta, "calibration restored");
+                    restored_time_s = Some(calibration.time_s);
                     twin.restore(calibration);
                 }
                 Ok(None) => {}
@@ -370,6 +375,7 @@ impl VesselTask {
             last_event_wall: Instant::now(),
             stale_published: false,
             unsaved: false,
+            restored_time_s,
             monitor,
             diagnose_slots,
             diagnosis: None,
@@ -404,6 +410,11 @@ impl VesselTask {
                 return self.counters;
             }
         };
+        for ev in self.restore_from_network(&mut rx).await {
+            self.last_event_wall = Instant::now();
+            self.handle(ev, &vessel_keys).await;
+            self.load.handled();
+        }
         // Whether the task acts as the vessel's active owner (its token
         // held), changed only in `on_fleet_change`.
         let mut owning = self.active();
@@ -471,7 +482,7 @@ impl VesselTask {
                     }
                     if self.unsaved && now.duration_since(timers.last_save).as_secs_f64() >= self.settings.persistence.save_interval_s {
                         timers.last_save = now;
-                        self.save();
+                        self.save().await;
                     }
                     timer.as_mut().reset(self.next_wake(&timers).into());
                 }
@@ -499,7 +510,7 @@ impl VesselTask {
         // Last words: state, fault and statistics, then the calibration.
         self.publish_state_and_fault(&vessel_keys, false).await;
         self.publish_stats(&vessel_keys).await;
-        self.save();
+        self.save().await;
         drop(token);
         // The last clone of a declared key expression undeclares it.
         drop(vessel_keys);
@@ -613,16 +624,124 @@ impl VesselTask {
         }
     }
 
-    fn save(&mut self) {
-        let Some(dir) = &self.settings.persistence.dir else {
+    /// Saves the calibration to the state directory, and, in a fleet that
+    /// shares calibrations, puts it on the network when this daemon is the
+    /// vessel's active owner.
+    async fn save(&mut self) {
+        let Some(c) = self.twin.calibration() else {
             return;
         };
-        if let Some(c) = self.twin.calibration() {
-            match persist::save(dir, self.id.as_str(), &c, &self.profile.identity()) {
+        let profile = self.profile.identity();
+        match &self.settings.persistence.dir {
+            Some(dir) => match persist::save(dir, self.id.as_str(), &c, &profile) {
                 Ok(()) => self.unsaved = false,
                 Err(e) => self.save_failures.failed(self.id.as_str(), &e),
+            },
+            None => self.unsaved = false,
+        }
+        let Some(key) = self.settings.fleet.calibration_key(self.id.as_str()) else {
+            return;
+        };
+        if !self.active() {
+            return;
+        }
+        let shared = match persist::encode(self.id.as_str(), &c, &profile) {
+            Ok(text) => {
+                let put = self
+                    .session
+                    .put(&key, text.into_bytes())
+                    .encoding(Encoding::APPLICATION_JSON)
+                    .congestion_control(CongestionControl::Block);
+                match self.fleet.daemon_id() {
+                    Some(id) => put.attachment(format!("daemon={id}")).await,
+                    None => put.await,
+                }
+                .map_err(|e| e.to_string())
+            }
+            Err(e) => Err(e),
+        };
+        if let Err(e) = shared {
+            tracing::warn!(
+                vessel = self.id.as_str(),
+                key,
+                "calibration not shared: {e}"
+            );
+        }
+    }
+
+    /// In a fleet that shares calibrations, asks the network for the
+    /// vessel's calibration (a storage on the routers keeps what the owners
+    /// put) and restores it when it is newer than the one restored from the
+    /// state directory, if any. One learnt with another profile, or not the
+    /// vessel's, is refused and logged.
+    ///
+    /// The vessel's events that arrive meanwhile are taken from `rx` and
+    /// returned, in order, for the caller to handle after the restore: a
+    /// full queue would stop the dispatcher, and with it Zenoh's reading
+    /// of the answer itself.
+    async fn restore_from_network(
+        &mut self,
+        rx: &mut mpsc::Receiver<VesselEvent>,
+    ) -> Vec<VesselEvent> {
+        let mut meanwhile = Vec::new();
+        let Some(key) = self.settings.fleet.calibration_key(self.id.as_str()) else {
+            return meanwhile;
+        };
+        let wait = Duration::from_secs_f64(self.settings.fleet.calibration_wait_s);
+        let replies = match self.session.get(&key).timeout(wait).await {
+            Ok(replies) => replies,
+            Err(e) => {
+                tracing::warn!(
+                    vessel = self.id.as_str(),
+                    key,
+                    "cannot ask for the calibration: {e}"
+                );
+                return meanwhile;
+            }
+        };
+        let profile = self.profile.identity();
+        let mut newest: Option<twin_core::twin::Calibration> = None;
+        let mut open = true;
+        loop {
+            let reply = tokio::select! {
+                reply = replies.recv_async() => match reply {
+                    Ok(reply) => reply,
+                    Err(_) => break,
+                },
+                ev = rx.recv(), if open => {
+                    match ev {
+                        Some(ev) => meanwhile.push(ev),
+                        None => open = false,
+                    }
+                    continue;
+                }
+            };
+            let Ok(sample) = reply.result() else {
+                continue;
+            };
+            match persist::decode(&sample.payload().to_bytes(), self.id.as_str(), &profile) {
+                Ok(c) if newest.as_ref().is_none_or(|n| c.time_s > n.time_s) => newest = Some(c),
+                Ok(_) => {}
+                Err(why) => tracing::warn!(
+                    vessel = self.id.as_str(),
+                    key,
+                    "a calibration from the network refused: {why}"
+                ),
             }
         }
+        if let Some(c) = newest
+            && self.restored_time_s.is_none_or(|t| c.time_s > t)
+        {
+            tracing::info!(
+                vessel = self.id.as_str(),
+                theta = ?c.theta,
+                learnt_until_s = c.time_s,
+                "calibration restored from the network"
+            );
+            self.restored_time_s = Some(c.time_s);
+            self.twin.restore(c);
+        }
+        meanwhile
     }
 
     async fn handle(&mut self, ev: VesselEvent, p: &VesselKeys) {

@@ -1,11 +1,15 @@
 //! Daemons sharing a fleet behind a Zenoh router (`[fleet] enabled`): the
 //! active owner killed with SIGKILL mid-trial and its hot standby taking
-//! over with the twin it kept; overlapping shares with exactly one daemon
-//! publishing; the fleet's report naming overlaps and gaps.
+//! over with the twin it kept; a daemon started after the owner's loss
+//! restoring the vessel's calibration from the network; overlapping shares
+//! with exactly one daemon publishing; the fleet's report naming overlaps
+//! and gaps.
 //!
 //! The router is a Zenoh session in router mode in this process (the same
 //! Zenoh as `zenohd`, which cannot be installed here: docs/deploy.md); the
-//! daemons of the failover test are `twind` processes, clients of it.
+//! daemons of the failover tests are `twind` processes, clients of it. What
+//! a `zenohd` storage would keep of the calibrations is kept by a stand-in
+//! in this process ([`CalibrationStore`]).
 
 use std::collections::BTreeSet;
 use std::process::{Child, Command, Stdio};
@@ -36,8 +40,14 @@ fn fleet_settings(id: &str, own: &str, roster: &[&str]) -> String {
 }
 
 fn start(port: u16, dir: &std::path::Path, id: &str) -> Child {
+    start_with(port, dir, id, &fleet_settings(id, "*", &["otter-1"]))
+}
+
+/// A `twind` process with the settings `text`, a client of the router at
+/// `port`, its state in `dir/{id}`.
+fn start_with(port: u16, dir: &std::path::Path, id: &str, text: &str) -> Child {
     let settings = dir.join(format!("{id}.toml"));
-    std::fs::write(&settings, fleet_settings(id, "*", &["otter-1"])).unwrap();
+    std::fs::write(&settings, text).unwrap();
     Command::new(env!("CARGO_BIN_EXE_twind"))
         .args(["--mode", "client", "--no-multicast-scouting"])
         .args(["--connect", &format!("tcp/127.0.0.1:{port}")])
@@ -133,9 +143,20 @@ fn terminate(child: &mut Child) {
     }
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn the_standby_takes_over_with_its_twin_when_the_owner_is_killed() {
-    let dir = std::env::temp_dir().join(format!("twind-fleet-{}", std::process::id()));
+/// A fresh directory for the daemons' files, a router in this process, a
+/// client of it, and the client's subscribers to `otter-1`'s faults and to
+/// the daemons' statistics.
+struct Harness {
+    dir: std::path::PathBuf,
+    port: u16,
+    router: zenoh::Session,
+    client: zenoh::Session,
+    sub: Samples,
+    stats: Samples,
+}
+
+async fn harness(name: &str) -> Harness {
+    let dir = std::env::temp_dir().join(format!("{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let port = free_port();
@@ -151,6 +172,26 @@ async fn the_standby_takes_over_with_its_twin_when_the_owner_is_killed() {
         .with(zenoh::handlers::FifoChannel::new(100_000))
         .await
         .unwrap();
+    Harness {
+        dir,
+        port,
+        router,
+        client,
+        sub,
+        stats,
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_standby_takes_over_with_its_twin_when_the_owner_is_killed() {
+    let Harness {
+        dir,
+        port,
+        router,
+        client,
+        sub,
+        stats,
+    } = harness("twind-fleet").await;
 
     // a starts first (the older: the owner), b joins as its standby.
     let mut a = start(port, &dir, "a");
@@ -230,6 +271,171 @@ async fn the_standby_takes_over_with_its_twin_when_the_owner_is_killed() {
     assert!((learnt - 0.3).abs() < 0.05, "{learnt}");
 
     terminate(&mut b);
+    client.close().await.unwrap();
+    router.close().await.unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Per key, the daemon that put the latest value and the value.
+type Kept = std::sync::Arc<std::sync::Mutex<std::collections::BTreeMap<String, (String, Vec<u8>)>>>;
+
+/// A stand-in for the routers' storage of the calibrations
+/// (`config/zenohd-fleet.json5`'s memory storage on
+/// `asv-fleet/calibration/**`): it keeps the latest value put on each key,
+/// with the daemon that put it, and answers queries with them.
+struct CalibrationStore {
+    kept: Kept,
+    _subscriber: zenoh::pubsub::Subscriber<()>,
+    answering: tokio::task::JoinHandle<()>,
+}
+
+impl CalibrationStore {
+    async fn on(session: &zenoh::Session) -> Self {
+        let kept = Kept::default();
+        let into = kept.clone();
+        let subscriber = session
+            .declare_subscriber("asv-fleet/calibration/**")
+            .callback(move |sample: zenoh::sample::Sample| {
+                into.lock().unwrap().insert(
+                    sample.key_expr().to_string(),
+                    (publisher_of(&sample), sample.payload().to_bytes().to_vec()),
+                );
+            })
+            .await
+            .unwrap();
+        let queryable = session
+            .declare_queryable("asv-fleet/calibration/**")
+            .await
+            .unwrap();
+        let from = kept.clone();
+        let answering = tokio::spawn(async move {
+            while let Ok(query) = queryable.recv_async().await {
+                let matching: Vec<(String, Vec<u8>)> = from
+                    .lock()
+                    .unwrap()
+                    .iter()
+                    .filter(|(key, _)| {
+                        zenoh::key_expr::KeyExpr::try_from(key.as_str())
+                            .is_ok_and(|k| query.key_expr().intersects(&k))
+                    })
+                    .map(|(key, (_, bytes))| (key.clone(), bytes.clone()))
+                    .collect();
+                for (key, bytes) in matching {
+                    let _ = query.reply(key, bytes).await;
+                }
+            }
+        });
+        Self {
+            kept,
+            _subscriber: subscriber,
+            answering,
+        }
+    }
+
+    fn close(self) {
+        self.answering.abort();
+    }
+
+    /// The calibration kept for `vessel`, with the daemon that put it.
+    fn get(&self, vessel: &str) -> Option<(String, Vec<u8>)> {
+        self.kept
+            .lock()
+            .unwrap()
+            .get(&format!("asv-fleet/calibration/{vessel}"))
+            .cloned()
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_daemon_started_after_the_owners_loss_restores_the_calibration_from_the_network() {
+    let Harness {
+        dir,
+        port,
+        router,
+        client,
+        sub,
+        stats,
+    } = harness("twind-fleet-net").await;
+    let store = CalibrationStore::on(&client).await;
+    let settings = |id: &str| {
+        format!(
+            "{}[persistence]\nsave_interval_s = 0.5\n",
+            fleet_settings(id, "*", &["otter-1"])
+        )
+    };
+
+    // a alone learns the first half of a trial with a 30 % port loss.
+    let mut a = start_with(port, &dir, "a", &settings("a"));
+    wait_token(&client, "a").await;
+    let msgs = messages(&simulate("s-manoeuvre_new-new", 0.3, 41));
+    let half = msgs.len() / 2;
+    publish(&client, "otter-1", &msgs[..half]).await;
+    wait_routed(&stats, "a", u64::try_from(half).unwrap()).await;
+    let learnt = offline(&msgs[..half]);
+    let last_fix_s = learnt.state_report().unwrap().time_s;
+    // Until the storage holds what a learnt from the whole half.
+    let deadline = Instant::now() + PATIENCE;
+    let (putter, kept) = loop {
+        if let Some((putter, bytes)) = store.get("otter-1") {
+            let v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+            if v["time_s"].as_f64() == Some(last_fix_s) {
+                break (putter, bytes);
+            }
+        }
+        assert!(Instant::now() < deadline, "a never shared its calibration");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
+    assert_eq!(putter, "a");
+    let last_of_a = faults(&sub).last().unwrap().1.clone();
+
+    // a's machine is lost with its disk; c starts on another, with an
+    // empty state directory, and serves the rest of the trial.
+    kill(&mut a);
+    let mut c = start_with(port, &dir, "c", &settings("c"));
+    wait_token(&client, "c").await;
+    publish(&client, "otter-1", &msgs[half..]).await;
+    wait_routed(&stats, "c", u64::try_from(msgs.len() - half).unwrap()).await;
+    tokio::time::sleep(Duration::from_secs(1)).await;
+    let from_c: Vec<FaultMessage> = faults(&sub)
+        .into_iter()
+        .filter(|(d, _)| d == "c")
+        .map(|(_, f)| f)
+        .collect();
+    let first = from_c.first().expect("c publishes");
+    println!(
+        "a's last port loss {:?} ({:?}); c's first {:?} ({:?})",
+        last_of_a.thrusters.port.loss_raw,
+        last_of_a.thrusters.port.status,
+        first.thrusters.port.loss_raw,
+        first.thrusters.port.status
+    );
+    // c goes on from what a learnt, not from a cold start (a port loss of
+    // 0): a's port loss from its first fix, and at the end exactly the twin
+    // restored from the calibration the storage kept, fed the second half.
+    let learnt_loss = last_of_a.thrusters.port.loss_raw.unwrap();
+    assert!(learnt_loss > 0.2, "{learnt_loss}");
+    let first_loss = first.thrusters.port.loss_raw.unwrap();
+    assert!((first_loss - learnt_loss).abs() < 0.02, "{first_loss}");
+    let profile = twin_wire::profile::VesselProfile::otter().identity();
+    let calibration = twind::persist::decode(&kept, "otter-1", &profile).unwrap();
+    let mut expected =
+        twin_core::twin::VesselTwin::new(twin_core::twin::TwinConfig::default()).unwrap();
+    expected.restore(calibration);
+    let expected = twin_tests::wire::feed(expected, &msgs[half..]);
+    let expected = FaultMessage::new(
+        "otter-1",
+        &expected.fault_report(expected.state_report().unwrap().time_s),
+        true,
+    );
+    let last = from_c.last().unwrap();
+    assert_eq!(
+        last.thrusters.port.loss_raw,
+        expected.thrusters.port.loss_raw
+    );
+    assert_eq!(last.effectiveness_ratio, expected.effectiveness_ratio);
+
+    terminate(&mut c);
+    store.close();
     client.close().await.unwrap();
     router.close().await.unwrap();
     let _ = std::fs::remove_dir_all(&dir);
