@@ -809,6 +809,11 @@ pub struct DrawScore {
     pub sides: [SideScore; 2],
     /// The forecast checks.
     pub bands: Vec<BandCheck>,
+    /// The estimator's profile errors against the vessel's perturbation
+    /// (surge damping, yaw damping, thrust coefficient: `factor - 1`): per
+    /// error, (samples, samples within two of its standard deviations),
+    /// every second from [`COVERAGE_FROM_S`].
+    pub profile_coverage: [(usize, usize); 3],
 }
 
 impl DrawScore {
@@ -849,7 +854,31 @@ pub fn score(draw: &Draw, record: &Record) -> DrawScore {
     DrawScore {
         sides,
         bands: record.bands.clone(),
+        profile_coverage: profile_coverage(draw, record),
     }
+}
+
+/// [`DrawScore::profile_coverage`].
+fn profile_coverage(draw: &Draw, record: &Record) -> [(usize, usize); 3] {
+    let v = &draw.vessel;
+    let truth = [v.surge_damping - 1.0, v.yaw_damping - 1.0, v.thrust - 1.0];
+    let mut out = [(0, 0); 3];
+    let mut next_s = COVERAGE_FROM_S;
+    for sample in &record.samples {
+        let Some(errors) = sample.report.profile_errors else {
+            continue;
+        };
+        if sample.elapsed_s < next_s {
+            continue;
+        }
+        next_s = sample.elapsed_s.floor() + 1.0;
+        for (k, (n, within)) in out.iter_mut().enumerate() {
+            let (estimate, sigma) = errors[k];
+            *n += 1;
+            *within += usize::from((estimate - truth[k]).abs() <= 2.0 * sigma);
+        }
+    }
+    out
 }
 
 fn score_side(draw: &Draw, record: &Record, i: usize) -> SideScore {
@@ -1019,6 +1048,18 @@ impl Matrix {
         k as f64 / n.max(1) as f64
     }
 
+    /// Per profile error (surge damping, yaw damping, thrust coefficient),
+    /// the share of samples within two of its standard deviations of the
+    /// drawn perturbation ([`DrawScore::profile_coverage`]).
+    pub fn profile_error_coverage(&self) -> [f64; 3] {
+        std::array::from_fn(|k| {
+            let (n, w) = self.all().fold((0, 0), |(n, w), (_, s)| {
+                (n + s.profile_coverage[k].0, w + s.profile_coverage[k].1)
+            });
+            w as f64 / n.max(1) as f64
+        })
+    }
+
     /// Share of (check, axis) within two sigmas at `horizon_s`.
     pub fn band_coverage(&self, horizon_s: f64) -> f64 {
         let (n, k) = self
@@ -1142,6 +1183,11 @@ impl Matrix {
             self.missed(),
             self.flapping(),
             self.late_onsets(),
+        );
+        let [du, dr, dk] = self.profile_error_coverage();
+        let _ = writeln!(
+            out,
+            "the estimator's profile errors (not published on twin/fault) within 2 sigma of the vessel's drawn factor - 1: surge damping {du:.3}, yaw damping {dr:.3}, thrust coefficient {dk:.3}"
         );
         out
     }
