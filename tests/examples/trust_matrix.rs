@@ -13,8 +13,8 @@ use twin_core::twin::TwinConfig;
 use twin_tests::trust::{Simulator, draws, run_matrix};
 
 fn main() -> Result<(), String> {
-    let mut own = 44;
-    let mut other = 22;
+    let mut own = 52;
+    let mut other = 26;
     let mut seed = 20_261_125u64;
     let mut threads = 2;
     let mut failures = false;

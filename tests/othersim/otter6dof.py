@@ -130,7 +130,9 @@ How it differs from the project's simulator (crates/twin-sim)
   couplings of the full 6x6 mass matrix: surge-pitch and sway-roll through
   the CG's height, roll-yaw through I_xz) against 3 DOF there; a different
   path (a lawn-mower with varying radii and speeds against a serpentine of
-  equal turns at one speed), different guidance (pure pursuit against LOS),
+  equal turns at one speed; the straight leg and the steady turn on a
+  circle of `--path` are common to both), different guidance (pure
+  pursuit against LOS),
   heading and speed controllers of different structure, gains and rate
   (10 Hz), a different disturbance (no wind), different sensor noise
   (velocity noise of 0.03 m/s, shaft noise of 1.5 rpm rounded to 0.1 rpm,
@@ -595,18 +597,47 @@ def lawn_mower(spacing_m: float = 0.25) -> PathPlan:
             spd.append(speed)
         steps = int(round(math.pi * radius / spacing_m))
         dpsi = turn_sign * math.pi / steps
-        for _ in range(steps):
-            # A chord of the arc: advance at the mid-course.
-            mid = course + 0.5 * dpsi
-            chord = 2.0 * radius * math.sin(0.5 * abs(dpsi))
-            n += chord * math.cos(mid)
-            e += chord * math.sin(mid)
-            course += dpsi
-            pts_n.append(n)
-            pts_e.append(e)
-            spd.append(speed)
+        n, e, course = arc(pts_n, pts_e, (n, e, course), radius, dpsi, steps)
+        spd.extend([speed] * steps)
         turn_sign = -turn_sign
     return PathPlan(np.array(pts_n), np.array(pts_e), np.array(spd), spacing_m)
+
+
+def arc(pts_n, pts_e, start, radius_m, dpsi, steps):
+    """Appends `steps` points of an arc of `radius_m` from `start` (north,
+    east, course), turning `dpsi` rad at each (each point advanced along the
+    chord at the mid-course); returns where it ends."""
+    n, e, course = start
+    chord = 2.0 * radius_m * math.sin(0.5 * abs(dpsi))
+    for _ in range(steps):
+        mid = course + 0.5 * dpsi
+        n += chord * math.cos(mid)
+        e += chord * math.sin(mid)
+        course += dpsi
+        pts_n.append(n)
+        pts_e.append(e)
+    return n, e, course
+
+
+def circles(
+    length_m: float,
+    radius_m: float = 20.0,
+    turn_sign: float = 1.0,
+    lead_in_m: float = 20.0,
+    speed_mps: float = 1.5,
+    spacing_m: float = 0.25,
+) -> PathPlan:
+    """A short leg north, then one circle of `radius_m` sailed over and over
+    (to starboard for `turn_sign` +1, to port for -1) for `length_m` in all:
+    a steady turn."""
+    steps = int(round(lead_in_m / spacing_m))
+    pts_n = [k * spacing_m for k in range(steps + 1)]
+    pts_e = [0.0] * (steps + 1)
+    dpsi = turn_sign * spacing_m / radius_m
+    steps = int(round(length_m / spacing_m))
+    arc(pts_n, pts_e, (pts_n[-1], 0.0, 0.0), radius_m, dpsi, steps)
+    count = len(pts_n)
+    return PathPlan(np.array(pts_n), np.array(pts_e), np.full(count, speed_mps), spacing_m)
 
 
 class PurePursuit:
@@ -726,7 +757,7 @@ class RunConfig:
     disturbance_correlation_s: float = 4.0
     hdop: float = 0.8
     payload_force: bool = False
-    path: str = "lawnmower"  # or "straight"
+    path: str = "lawnmower"  # or "straight", "circle-starboard", "circle-port"
     gyro: bool = False  # a rate gyro's yaw rate in each fix's line
     gyro_sigma_degps: float = 0.2
     scales: VesselScales = field(default_factory=VesselScales)
@@ -753,11 +784,13 @@ def simulate(cfg: RunConfig, fx: Effects):
     """Runs the trial; returns (log lines, truth dict)."""
     params = otter_parameters(cfg.scales)
     dyn = OtterDynamics(params, cfg.payload_force)
-    plan = (
-        straight(1.5 * cfg.duration_s + 50.0)
-        if cfg.path == "straight"
-        else lawn_mower()
-    )
+    if cfg.path == "straight":
+        plan = straight(1.5 * cfg.duration_s + 50.0)
+    elif cfg.path in ("circle-starboard", "circle-port"):
+        sign = 1.0 if cfg.path == "circle-starboard" else -1.0
+        plan = circles(1.5 * cfg.duration_s + 50.0, turn_sign=sign)
+    else:
+        plan = lawn_mower()
     guidance = PurePursuit(plan)
     seeds = np.random.SeedSequence(cfg.seed).spawn(5)
     rng_dist, rng_gnss, rng_heading, rng_shaft, rng_gyro = (
@@ -1061,7 +1094,13 @@ def parse_args(argv):
     ap.add_argument("--loss", type=float)
     ap.add_argument("--loss-onset-s", type=float, default=0.0,
                     help="the loss acts from this time on (s)")
-    ap.add_argument("--path", choices=("lawnmower", "straight"), default="lawnmower")
+    ap.add_argument(
+        "--path",
+        choices=("lawnmower", "straight", "circle-starboard", "circle-port"),
+        default="lawnmower",
+        help="a lawn-mower of seven legs, one straight leg, or a steady turn "
+        "on a circle of 20 m radius after a 20 m lead-in",
+    )
     ap.add_argument("--shaft-rate-hz", type=float, default=10.0)
     ap.add_argument("--gyro", action="store_true",
                     help="write a rate gyro's yaw_rate_radps into each fix's line")

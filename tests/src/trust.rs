@@ -112,11 +112,15 @@ pub enum Class {
     LeverArm,
     /// A current of 0.1-0.4 m/s and a loss.
     CurrentLoss,
+    /// A steady turn on a circle of 20 m radius, healthy.
+    SteadyTurn,
+    /// A steady turn with a loss.
+    SteadyTurnLoss,
 }
 
 impl Class {
     /// Every class, in table order.
-    pub const ALL: [Class; 11] = [
+    pub const ALL: [Class; 13] = [
         Class::Healthy,
         Class::Loss,
         Class::LateLoss,
@@ -128,6 +132,8 @@ impl Class {
         Class::Latency,
         Class::LeverArm,
         Class::CurrentLoss,
+        Class::SteadyTurn,
+        Class::SteadyTurnLoss,
     ];
 
     /// snake_case name.
@@ -144,11 +150,17 @@ impl Class {
             Class::Latency => "latency",
             Class::LeverArm => "lever_arm",
             Class::CurrentLoss => "current+loss",
+            Class::SteadyTurn => "steady_turn",
+            Class::SteadyTurnLoss => "steady_turn+loss",
         }
     }
 
     fn straight(self) -> bool {
         matches!(self, Class::Straight | Class::StraightLoss)
+    }
+
+    fn steady_turn(self) -> bool {
+        matches!(self, Class::SteadyTurn | Class::SteadyTurnLoss)
     }
 }
 
@@ -237,6 +249,8 @@ pub struct Draw {
     pub gyro: bool,
     /// Length of the trial, s.
     pub duration_s: f64,
+    /// The direction of a steady turn: +1 to starboard, -1 to port.
+    pub turn_sign: f64,
 }
 
 impl Draw {
@@ -246,6 +260,19 @@ impl Draw {
             self.loss
         } else {
             [0.0, 0.0]
+        }
+    }
+
+    /// The independent simulator's `--path` for this draw.
+    fn other_path(&self) -> &'static str {
+        if self.class.straight() {
+            "straight"
+        } else if !self.class.steady_turn() {
+            "lawnmower"
+        } else if self.turn_sign > 0.0 {
+            "circle-starboard"
+        } else {
+            "circle-port"
         }
     }
 
@@ -285,6 +312,13 @@ impl Draw {
         }
         if let Some((v, d)) = self.current {
             let _ = write!(s, ", current {v:.2} m/s toward {d:.0} deg");
+        }
+        if self.class.steady_turn() {
+            s.push_str(if self.turn_sign > 0.0 {
+                ", turning to starboard"
+            } else {
+                ", turning to port"
+            });
         }
         let v = &self.vessel;
         if self.is_control() {
@@ -363,10 +397,16 @@ fn draw(rng: &mut StdRng, simulator: Simulator, index: usize, class: Class) -> D
         shaft_rate_hz: if rng.random_bool(0.5) { 5.0 } else { 20.0 },
         gyro: rng.random_bool(0.5),
         duration_s: if class.straight() { 180.0 } else { 300.0 },
+        turn_sign: 1.0,
     };
     match class {
         Class::Healthy | Class::Straight => {}
         Class::Loss | Class::StraightLoss => d.loss = one_loss(rng),
+        Class::SteadyTurn => d.turn_sign = sign(rng),
+        Class::SteadyTurnLoss => {
+            d.turn_sign = sign(rng);
+            d.loss = one_loss(rng);
+        }
         Class::LateLoss => {
             d.loss = one_loss(rng);
             d.onset_s = rng.random_range(90.0..180.0);
@@ -421,7 +461,9 @@ pub fn simulate(draw: &Draw) -> Result<Trial, String> {
 }
 
 /// A lawn-mower of six legs of 40 m joined by 180 deg turns of radius 12 m
-/// alternately to starboard and to port (or one straight leg), at 1.5 m/s.
+/// alternately to starboard and to port (or one straight leg, or a 20 m
+/// leg north then a circle of 20 m radius sailed over and over), at
+/// 1.5 m/s.
 fn own_scenario(draw: &Draw) -> Scenario {
     let wp = |north_m: f64, east_m: f64| Waypoint {
         north_m: Some(north_m),
@@ -431,6 +473,21 @@ fn own_scenario(draw: &Draw) -> Scenario {
     };
     let waypoints = if draw.class.straight() {
         vec![wp(0.0, 0.0), wp(600.0, 0.0)]
+    } else if draw.class.steady_turn() {
+        // Points every 10 deg of the circle, whose centre is 20 m abeam of
+        // the lead-in's end on the side of the turn; enough laps for the
+        // trial.
+        let radius = 20.0;
+        let laps = (1.5 * draw.duration_s / (2.0 * std::f64::consts::PI * radius)).ceil() + 1.0;
+        let mut w = vec![wp(0.0, 0.0)];
+        for k in 0..(36.0 * laps) as usize {
+            let a = (k as f64) * 10f64.to_radians();
+            w.push(wp(
+                20.0 + radius * a.sin(),
+                draw.turn_sign * radius * (1.0 - a.cos()),
+            ));
+        }
+        w
     } else {
         let radius = 12.0;
         let mut w = vec![wp(0.0, 0.0)];
@@ -524,14 +581,7 @@ fn simulate_other(draw: &Draw) -> Result<Trial, String> {
         .args(["--seed", &draw.seed.to_string()])
         .args(["--duration-s", &draw.duration_s.to_string()])
         .args(["--shaft-rate-hz", &draw.shaft_rate_hz.to_string()])
-        .args([
-            "--path",
-            if draw.class.straight() {
-                "straight"
-            } else {
-                "lawnmower"
-            },
-        ])
+        .args(["--path", draw.other_path()])
         .args(["--mass-scale", &v.mass.to_string()])
         .args(["--added-mass-scale", &v.added_mass.to_string()])
         .args(["--surge-damping-scale", &v.surge_damping.to_string()])

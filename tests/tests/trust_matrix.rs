@@ -9,7 +9,7 @@
 //! propeller, of a forecast position) covers the truth at its stated rate.
 
 use twin_core::twin::TwinConfig;
-use twin_tests::trust::{Matrix, Simulator, draws, other_simulator_unavailable, run_matrix};
+use twin_tests::trust::{Class, Matrix, Simulator, draws, other_simulator_unavailable, run_matrix};
 
 /// The draws' seed (the example's default).
 const SEED: u64 = 20_261_125;
@@ -21,10 +21,10 @@ fn matrix() -> Matrix {
     if let Some(why) = other_simulator_unavailable() {
         panic!("the independent simulator cannot run: {why}");
     }
-    let mut all = draws(Simulator::Own, 11, SEED);
-    let mut others = draws(Simulator::Other, 11, SEED ^ 0x0A11_0C8E);
+    let mut all = draws(Simulator::Own, Class::ALL.len(), SEED);
+    let mut others = draws(Simulator::Other, Class::ALL.len(), SEED ^ 0x0A11_0C8E);
     for d in &mut others {
-        d.index += 11;
+        d.index += Class::ALL.len();
     }
     all.extend(others);
     run_matrix(&all, TwinConfig::default(), 2).expect("the draws run")
