@@ -552,6 +552,12 @@ impl VesselTask {
         } else {
             &key.key
         };
+        self.put_on(key, bytes).await
+    }
+
+    /// Puts `bytes` on `key` as JSON, blocking when Zenoh's queues are
+    /// full; in a fleet with the attachment `daemon=<id>`.
+    async fn put_on(&self, key: &KeyExpr<'_>, bytes: Vec<u8>) -> zenoh::Result<()> {
         let put = self
             .session
             .put(key, bytes)
@@ -645,20 +651,16 @@ impl VesselTask {
         if !self.active() {
             return;
         }
-        let shared = match persist::encode(self.id.as_str(), &c, &profile) {
-            Ok(text) => {
-                let put = self
-                    .session
-                    .put(&key, text.into_bytes())
-                    .encoding(Encoding::APPLICATION_JSON)
-                    .congestion_control(CongestionControl::Block);
-                match self.fleet.daemon_id() {
-                    Some(id) => put.attachment(format!("daemon={id}")).await,
-                    None => put.await,
-                }
-                .map_err(|e| e.to_string())
-            }
-            Err(e) => Err(e),
+        let shared = match (
+            persist::encode(self.id.as_str(), &c, &profile),
+            KeyExpr::try_from(key.as_str()),
+        ) {
+            (Ok(text), Ok(key)) => self
+                .put_on(&key, text.into_bytes())
+                .await
+                .map_err(|e| e.to_string()),
+            (Err(e), _) => Err(e),
+            (_, Err(e)) => Err(e.to_string()),
         };
         if let Err(e) = shared {
             tracing::warn!(
