@@ -298,7 +298,12 @@ pub struct PredictionPoint {
     pub sigma_east_m: f64,
 }
 
-/// `twin/prediction`: the forecast.
+/// `twin/prediction`: the forecast from the last fix, with the inputs held
+/// at their last values (the extended twin's shaft speeds, or the seed
+/// method's derived inputs). Its position sigma covers the water's
+/// disturbance and what the twin does not know of the vessel, not a change
+/// of command: where the vessel's autopilot changes the shaft speeds, the
+/// forecast is off by what the change does.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct PredictionMessage {
     /// Vessel id.
