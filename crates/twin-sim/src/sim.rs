@@ -441,38 +441,17 @@ impl<'a> Run<'a> {
         t_next
     }
 
-    /// Integrates the state from `t` to `t_next` with RK4 in equal steps of
-    /// at most the plan's step.
+    /// Integrates the state from `t` to `t_next` ([`integrate_held`]).
     fn integrate(&mut self, t: f64, t_next: f64, disturbance_force: [f64; 3]) {
-        let plan = self.plan;
-        let steps = (((t_next - t) / plan.step_s) - 1e-9).ceil().max(1.0);
-        let h = (t_next - t) / steps;
-        for k in 0..steps as usize {
-            let t0 = t + k as f64 * h;
-            let act = Actuation {
-                n_cmd_radps: self.n_cmd,
-                loss: self.loss_at(t0 + 0.5 * h),
-            };
-            let model = &self.model;
-            self.x = rk4_step(
-                |ts, xs| {
-                    let (current, accel) = plan.current.at(ts);
-                    let wind_force = plan
-                        .wind
-                        .map_or([0.0; 3], |w| w.force(xs[idx::PSI], xs[idx::U], xs[idx::V]));
-                    let env = Surroundings {
-                        current_ned_mps: current,
-                        current_accel_ned_mps2: accel,
-                        wind_force,
-                        disturbance_force,
-                    };
-                    model.derivative(xs, &act, &env)
-                },
-                t0,
-                &self.x,
-                h,
-            );
-        }
+        self.x = integrate_held(
+            self.plan,
+            &self.model,
+            &self.x,
+            (t, t_next),
+            self.n_cmd,
+            |ts| self.loss_at(ts),
+            disturbance_force,
+        );
     }
 
     fn finish(self) -> SimRun {
@@ -487,6 +466,50 @@ impl<'a> Run<'a> {
             waypoint_passes: self.passes,
         }
     }
+}
+
+/// `x` integrated over `span` (elapsed s, from, to) with RK4 in equal steps
+/// of at most the plan's step: the shaft speed commands `n_cmd_radps` and
+/// the random disturbance held, the losses at each step's midpoint, the
+/// plan's current and wind at each stage.
+fn integrate_held(
+    plan: &Plan,
+    model: &OtterModel,
+    x: &StateVector,
+    (t, t_next): (f64, f64),
+    n_cmd_radps: [f64; 2],
+    loss_at: impl Fn(f64) -> [f64; 2],
+    disturbance_force: [f64; 3],
+) -> StateVector {
+    let steps = (((t_next - t) / plan.step_s) - 1e-9).ceil().max(1.0);
+    let h = (t_next - t) / steps;
+    let mut x = *x;
+    for k in 0..steps as usize {
+        let t0 = t + k as f64 * h;
+        let act = Actuation {
+            n_cmd_radps,
+            loss: loss_at(t0 + 0.5 * h),
+        };
+        x = rk4_step(
+            |ts, xs| {
+                let (current, accel) = plan.current.at(ts);
+                let wind_force = plan
+                    .wind
+                    .map_or([0.0; 3], |w| w.force(xs[idx::PSI], xs[idx::U], xs[idx::V]));
+                let env = Surroundings {
+                    current_ned_mps: current,
+                    current_accel_ned_mps2: accel,
+                    wind_force,
+                    disturbance_force,
+                };
+                model.derivative(xs, &act, &env)
+            },
+            t0,
+            &x,
+            h,
+        );
+    }
+    x
 }
 
 /// The plan's vessel driven open loop from the true state of `truth[0]` by
@@ -521,52 +544,49 @@ pub fn replay_without_disturbance(
         first.shaft_radps[1],
     ]);
     let elapsed = |c: &PropellerSpeeds| c.time_s - plan.start_unix_s;
-    let command_at = |t_s: f64| {
-        commands
-            .iter()
-            .rev()
-            .find(|c| elapsed(c) <= t_s + SAME_INSTANT_S)
-            .map_or(first.shaft_cmd_radps, |c| [c.port_radps, c.starboard_radps])
+    // The command in force: the last one at or before the time reached
+    // (`next` is the first not yet in force).
+    let mut n_cmd = first.shaft_cmd_radps;
+    let mut next = 0;
+    let take_until = |t_s: f64, next: &mut usize, n_cmd: &mut [f64; 2]| {
+        while let Some(c) = commands.get(*next)
+            && elapsed(c) <= t_s + SAME_INSTANT_S
+        {
+            *n_cmd = [c.port_radps, c.starboard_radps];
+            *next += 1;
+        }
     };
     let mut out = Vec::with_capacity(truth.len().saturating_sub(1));
     for pair in truth.windows(2) {
         let (from, to) = (&pair[0], &pair[1]);
         // Integrate piecewise between the command changes inside the span.
-        let mut instants = vec![from.elapsed_s];
-        instants.extend(commands.iter().map(elapsed).filter(|t| {
-            *t > from.elapsed_s + SAME_INSTANT_S && *t < to.elapsed_s - SAME_INSTANT_S
-        }));
-        instants.push(to.elapsed_s);
-        let mut act = Actuation {
-            n_cmd_radps: command_at(from.elapsed_s),
+        let mut t = from.elapsed_s;
+        take_until(t, &mut next, &mut n_cmd);
+        loop {
+            let change = commands
+                .get(next)
+                .map(elapsed)
+                .filter(|c| *c < to.elapsed_s - SAME_INSTANT_S);
+            let t_next = change.unwrap_or(to.elapsed_s);
+            x = integrate_held(
+                plan,
+                &model,
+                &x,
+                (t, t_next),
+                n_cmd,
+                |_| from.loss,
+                [0.0; 3],
+            );
+            t = t_next;
+            if change.is_none() {
+                break;
+            }
+            take_until(t, &mut next, &mut n_cmd);
+        }
+        let act = Actuation {
+            n_cmd_radps: n_cmd,
             loss: from.loss,
         };
-        for piece in instants.windows(2) {
-            act.n_cmd_radps = command_at(piece[0]);
-            let span_s = piece[1] - piece[0];
-            let steps = ((span_s / plan.step_s) - 1e-9).ceil().max(1.0);
-            let h = span_s / steps;
-            for k in 0..steps as usize {
-                let t0 = piece[0] + k as f64 * h;
-                x = rk4_step(
-                    |ts, xs| {
-                        let (current, accel) = plan.current.at(ts);
-                        let env = Surroundings {
-                            current_ned_mps: current,
-                            current_accel_ned_mps2: accel,
-                            wind_force: plan.wind.map_or([0.0; 3], |w| {
-                                w.force(xs[idx::PSI], xs[idx::U], xs[idx::V])
-                            }),
-                            disturbance_force: [0.0; 3],
-                        };
-                        model.derivative(xs, &act, &env)
-                    },
-                    t0,
-                    &x,
-                    h,
-                );
-            }
-        }
         out.push(truth_sample(
             plan,
             &model,
