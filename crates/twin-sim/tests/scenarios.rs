@@ -25,9 +25,15 @@ fn shipped_scenarios_are_the_seed_trial_matrix() {
         }
     }
     // Besides the matrix: the demo's trial, the base of the diagnose
-    // tests and the identification trial (docs/identification.md). Each
-    // must still load; a new file has to be added here on purpose.
-    let extras = ["demo_broken-port", "diagnose_base", "identify_heavy-otter"];
+    // tests, the identification trial and the trial its profile is judged
+    // on (docs/identification.md). Each must still load; a new file has to
+    // be added here on purpose.
+    let extras = [
+        "demo_broken-port",
+        "diagnose_base",
+        "identify_heavy-otter",
+        "identify_heavy-otter_port-loss",
+    ];
     for extra in extras {
         let s = shipped(extra);
         assert_eq!(s.name, extra);

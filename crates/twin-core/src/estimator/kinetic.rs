@@ -344,8 +344,9 @@ pub struct KineticBase {
     propeller_mismatch_sigma: f64,
     /// The losses' prior variance.
     prior_loss_variance: f64,
-    /// The variance of the losses' common part that no data resolve (see
-    /// [`KineticBase::losses`]).
+    /// The variance of the losses' common part that no data resolve, from
+    /// the profile's prior (see [`KineticBase::losses`], which adds how far
+    /// the estimate has moved the profile's errors).
     common_mode_variance: f64,
     gate: CourseGate,
 }
@@ -663,8 +664,21 @@ impl KineticBase {
         // common scale error c of both effectivenesses moves each loss by
         // -(1 - loss_i) c. The relative losses are untouched (a common scale
         // cancels in them).
+        //
+        // The floor also holds how far the filter has moved the surge
+        // damping and thrust errors from the profile: those moves run along
+        // the direction no data resolve (a thrust error up, both losses up
+        // alike), where the filter's own variance shrinks from the weak
+        // coupling through the sway and yaw balance rather than from
+        // evidence. On a vessel whose profile was identified from a trial,
+        // a port loss of 0.25 took the thrust error to +0.23 and the healthy
+        // starboard loss with it to 0.21, both with sigmas of 0.02 to 0.06
+        // (docs/model.md section 10). A move of the errors by d widens the
+        // common part by d: the loss is then as uncertain as the profile it
+        // was measured against.
         let e = [1.0 - loss[0], 1.0 - loss[1]];
-        let floor = self.common_mode_variance;
+        let moved = t[fault::SURGE_DAMPING].powi(2) + t[fault::THRUST].powi(2);
+        let floor = self.common_mode_variance + moved;
         // Where the common part is not told at all, it is as uncertain as
         // the losses' prior, whatever the estimate has drifted to.
         let untold = if common_part_told {
