@@ -73,6 +73,22 @@ fn twin(dir: &Path, args: &[&str]) -> String {
     run(dir, env!("CARGO_BIN_EXE_twin"), args, "")
 }
 
+/// `twin simulate` of the shipped scenario `file` (in
+/// `config/scenarios/`) into `log`.
+fn simulate_shipped(dir: &Path, file: &str, log: &str) {
+    let path = workspace_root().join("config/scenarios").join(file);
+    twin(
+        dir,
+        &[
+            "simulate",
+            "--scenario",
+            path.to_str().unwrap(),
+            "--out",
+            log,
+        ],
+    );
+}
+
 /// `twin identify --json` on `log`, with the profile written to `out`.
 fn identify(dir: &Path, log: &str, out: &str) -> serde_json::Value {
     let json = twin(
@@ -102,17 +118,7 @@ fn parameter(report: &serde_json::Value, name: &str) -> (f64, f64, String) {
 #[test]
 fn a_manoeuvring_trial_identifies_the_hull_resistance_and_holds_the_force_scale() {
     let dir = scratch("heavy");
-    let scenario = workspace_root().join("config/scenarios/identify_heavy-otter.toml");
-    twin(
-        &dir,
-        &[
-            "simulate",
-            "--scenario",
-            scenario.to_str().unwrap(),
-            "--out",
-            "trial.nmea",
-        ],
-    );
+    simulate_shipped(&dir, "identify_heavy-otter.toml", "trial.nmea");
     let report = identify(&dir, "trial.nmea", "trial.toml");
     println!("{}", serde_json::to_string_pretty(&report).unwrap());
 
@@ -250,22 +256,11 @@ fn assert_port_loss_found(simulator: &str, losses: &[(f64, String, bool); 2]) {
 #[test]
 fn a_profile_identified_from_a_healthy_trial_finds_a_later_port_loss_on_both_simulators() {
     let dir = scratch("loss");
-    let scenarios = workspace_root().join("config/scenarios");
     for (scenario, log) in [
         ("identify_heavy-otter.toml", "trial.nmea"),
         ("identify_heavy-otter_port-loss.toml", "loss.nmea"),
     ] {
-        let path = scenarios.join(scenario);
-        twin(
-            &dir,
-            &[
-                "simulate",
-                "--scenario",
-                path.to_str().unwrap(),
-                "--out",
-                log,
-            ],
-        );
+        simulate_shipped(&dir, scenario, log);
     }
     identify(&dir, "trial.nmea", "heavy.toml");
     assert_port_loss_found("twin-sim", &losses_on(&dir, "loss.nmea", "heavy.toml"));
@@ -303,5 +298,34 @@ fn a_profile_identified_from_a_healthy_trial_finds_a_later_port_loss_on_both_sim
         "othersim",
         &losses_on(&dir, "other-loss.jsonl", "other-heavy.toml"),
     );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn on_the_otters_profile_the_heavy_vessel_raises_no_false_fault() {
+    // Twice the Otter's mass: the filter's mass and yaw damping errors go
+    // far past their prior, and the propellers' comparison is no longer
+    // read off a yaw balance the profile cannot write. Before that guard
+    // (KineticConfig::plausible_profile_sigmas) the healthy trial had port
+    // FAULT from 115 s to 164 s and starboard FAULT from 157 s to the end.
+    let dir = scratch("otter-profile");
+    let otter = dir.join("otter.toml");
+    std::fs::write(&otter, VesselProfile::otter().to_toml()).unwrap();
+    let otter = otter.to_str().unwrap();
+    for (scenario, healthy) in [
+        ("identify_heavy-otter.toml", [true, true]),
+        ("identify_heavy-otter_port-loss.toml", [false, true]),
+    ] {
+        simulate_shipped(&dir, scenario, "trial.nmea");
+        let losses = losses_on(&dir, "trial.nmea", otter);
+        for ((side, (_, status, ever_fault)), healthy) in
+            ["port", "starboard"].iter().zip(&losses).zip(healthy)
+        {
+            assert!(
+                !(healthy && *ever_fault),
+                "{scenario}: the healthy {side} propeller was declared FAULT (ends {status})"
+            );
+        }
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

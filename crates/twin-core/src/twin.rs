@@ -462,11 +462,36 @@ struct KineticEstimator {
     /// over the weights, so the start's guess counts as one sample, not as
     /// a memory's worth.
     yaw_rate_moments: [f64; 3],
+    /// Exponentially weighted means over the filter's memory of the NIS and
+    /// of its degrees of freedom (see
+    /// [`KineticConfig::max_explained_nis_per_dof`]).
+    nis_moments: [f64; 2],
 }
 
 impl KineticEstimator {
+    /// The NIS per degree of freedom over the filter's memory (0 before
+    /// the first update).
+    fn nis_per_dof(&self) -> f64 {
+        let [nis, dof] = self.nis_moments;
+        if dof > 0.0 { nis / dof } else { 0.0 }
+    }
+
+    /// Whether the profile still describes the vessel well enough for the
+    /// yaw balance to compare the propellers: the yaw damping and mass
+    /// errors within [`KineticConfig::plausible_profile_sigmas`] of their
+    /// prior, and the data explained
+    /// ([`KineticConfig::max_explained_nis_per_dof`]).
+    fn profile_describes_vessel(&self, state: &KineticState, config: &KineticConfig) -> bool {
+        let k = config.plausible_profile_sigmas;
+        let plausible = [(fault::YAW_DAMPING, 1), (fault::MASS, 3)]
+            .into_iter()
+            .all(|(i, prior)| state.theta[i].abs() <= k * config.profile_sigma[prior]);
+        plausible && self.nis_per_dof() <= config.max_explained_nis_per_dof
+    }
+
     /// Moves the running means of the heading and the yaw rate towards the
-    /// estimate after a step of `dt_s`, or starts them at the estimate.
+    /// estimate, and those of the NIS towards the last step's, after a step
+    /// of `dt_s`; or starts them at the estimate (the NIS's empty).
     fn track_motion(&mut self, dt_s: Option<f64>) {
         let Some(state) = &self.state else { return };
         let (sin_h, cos_h) = state.x[idx::PSI].sin_cos();
@@ -483,6 +508,15 @@ impl KineticEstimator {
                 }
             }
             None => *y = [0.0; 3],
+        }
+        match (dt_s, &self.last_report) {
+            (Some(_), Some(report)) if report.nis.is_finite() => {
+                let m = &mut self.nis_moments;
+                m[0] += w * (report.nis - m[0]);
+                m[1] += w * (report.dof as f64 - m[1]);
+            }
+            (None, _) => self.nis_moments = [0.0; 2],
+            _ => {}
         }
     }
 
@@ -600,6 +634,7 @@ impl VesselTwin {
                 last_available: [false; MEASUREMENTS],
                 heading_mean: [0.0; 2],
                 yaw_rate_moments: [0.0; 3],
+                nis_moments: [0.0; 2],
                 last_input: None,
             },
             config,
@@ -1095,7 +1130,12 @@ impl VesselTwin {
                     || self.kinetic.heading_spread() >= self.config.kinetic.min_heading_spread;
                 // On a steady turn a yaw damping error and a difference of
                 // the losses are one ([`KineticConfig::min_yaw_rate_spread`]).
-                let yaw_balance_told = self.kinetic.yaw_balance_told(&self.config.kinetic);
+                // Nor where the profile no longer describes the vessel
+                // ([`KineticConfig::plausible_profile_sigmas`]).
+                let yaw_balance_told = self.kinetic.yaw_balance_told(&self.config.kinetic)
+                    && self
+                        .kinetic
+                        .profile_describes_vessel(k, &self.config.kinetic);
                 let r = self
                     .kinetic
                     .base

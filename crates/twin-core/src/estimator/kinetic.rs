@@ -80,6 +80,18 @@ pub struct KineticConfig {
     /// The yaw rate below which a run counts as straight for
     /// [`Self::min_yaw_rate_spread`], rad/s.
     pub straight_yaw_rate_radps: f64,
+    /// The comparison of the propellers is read off the yaw balance as the
+    /// profile writes it (yaw inertia, yaw damping). It counts as excited
+    /// only while the filter's yaw damping and mass errors are within this
+    /// many of their prior standard deviations ([`Self::profile_sigma`]):
+    /// further out the profile does not describe the vessel, and the
+    /// comparison absorbs what it lacks (a vessel twice its profile's mass,
+    /// healthy, read a relative loss of 0.27 +- 0.03 with the filter's mass
+    /// error at its floor; docs/model.md section 10).
+    pub plausible_profile_sigmas: f64,
+    /// The same while the filter explains the data: its NIS per degree of
+    /// freedom, averaged over the filter's memory, at most this.
+    pub max_explained_nis_per_dof: f64,
     /// How much two propellers of one make differ when both are healthy
     /// (thrust coefficients, shaft-speed sensors, their distance from the
     /// centre line), as a standard deviation of their relative
@@ -192,6 +204,8 @@ impl KineticConfig {
             min_heading_spread: 0.05,
             min_yaw_rate_spread: 0.5,
             straight_yaw_rate_radps: 0.02,
+            plausible_profile_sigmas: 3.0,
+            max_explained_nis_per_dof: 2.0,
             propeller_mismatch_sigma: 0.03,
         }
     }
