@@ -483,9 +483,10 @@ impl KineticEstimator {
     /// ([`KineticConfig::max_explained_nis_per_dof`]).
     fn profile_describes_vessel(&self, state: &KineticState, config: &KineticConfig) -> bool {
         let k = config.plausible_profile_sigmas;
-        let plausible = [(fault::YAW_DAMPING, 1), (fault::MASS, 3)]
+        // `profile_sigma` is in the faults' order from the surge damping on.
+        let plausible = [fault::YAW_DAMPING, fault::MASS]
             .into_iter()
-            .all(|(i, prior)| state.theta[i].abs() <= k * config.profile_sigma[prior]);
+            .all(|i| state.theta[i].abs() <= k * config.profile_sigma[i - fault::SURGE_DAMPING]);
         plausible && self.nis_per_dof() <= config.max_explained_nis_per_dof
     }
 
