@@ -16,7 +16,9 @@
 //! 0.03 of the truth (issue bar), the port propeller FAULT and the healthy
 //! starboard one never. Before the losses' common part took in how far the
 //! filter moves the profile's errors (docs/model.md section 10), both
-//! simulators gave about 0.39 port and 0.18 starboard, both FAULT.
+//! simulators gave about 0.39 port and 0.18 starboard, both FAULT. And
+//! what the twin says of the same vessel on the Otter's profile, far from
+//! it: never FAULT on a healthy propeller.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
