@@ -237,6 +237,15 @@ fn losses_on(dir: &Path, log: &str, profile: &str) -> [(f64, String, bool); 2] {
     })
 }
 
+/// Whether `twin analyze --json` of `log` on `profile` ends with the
+/// comparison of the propellers withheld because the profile does not
+/// describe the vessel (`thrusters.profile_mismatch`).
+fn withheld_on(dir: &Path, log: &str, profile: &str) -> bool {
+    let json = twin(dir, &["analyze", log, "--profile", profile, "--json"]);
+    let report: serde_json::Value = serde_json::from_str(&json).unwrap();
+    !report["thrusters"]["profile_mismatch"].is_null()
+}
+
 /// The judgement of a port loss of 0.25 read on an identified profile.
 fn assert_port_loss_found(simulator: &str, losses: &[(f64, String, bool); 2]) {
     let [(port, port_status, _), (stb, stb_status, stb_ever_fault)] = losses;
@@ -266,6 +275,7 @@ fn a_profile_identified_from_a_healthy_trial_finds_a_later_port_loss_on_both_sim
     }
     identify(&dir, "trial.nmea", "heavy.toml");
     assert_port_loss_found("twin-sim", &losses_on(&dir, "loss.nmea", "heavy.toml"));
+    assert!(!withheld_on(&dir, "loss.nmea", "heavy.toml"));
 
     // The independent simulator: its own hull, guidance and sensors, the
     // same changes of mass and damping; a healthy lawn-mower, then another
@@ -319,6 +329,8 @@ fn on_the_otters_profile_the_heavy_vessel_raises_no_false_fault() {
         ("identify_heavy-otter_port-loss.toml", [false, true]),
     ] {
         simulate_shipped(&dir, scenario, "trial.nmea");
+        // And the twin says why it is silent.
+        assert!(withheld_on(&dir, "trial.nmea", otter), "{scenario}");
         let losses = losses_on(&dir, "trial.nmea", otter);
         for ((side, (_, status, ever_fault)), healthy) in
             ["port", "starboard"].iter().zip(&losses).zip(healthy)

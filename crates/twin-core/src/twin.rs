@@ -444,6 +444,27 @@ struct SeedEstimator {
     thruster_loss: [Option<f64>; 2],
 }
 
+/// What shows that a vessel's profile does not describe it: the extended
+/// twin's yaw damping and mass errors with the most each may be
+/// ([`KineticConfig::plausible_profile_sigmas`] of its prior), and the NIS
+/// per degree of freedom over the filter's memory with its bound
+/// ([`KineticConfig::max_explained_nis_per_dof`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProfileMismatch {
+    /// The relative error of the profile's yaw damping the filter reached.
+    pub yaw_damping_error: f64,
+    /// The largest it may be.
+    pub yaw_damping_bound: f64,
+    /// The relative error of the profile's mass the filter reached.
+    pub mass_error: f64,
+    /// The largest it may be.
+    pub mass_bound: f64,
+    /// The NIS per degree of freedom over the filter's memory.
+    pub nis_per_dof: f64,
+    /// The largest it may be.
+    pub max_nis_per_dof: f64,
+}
+
 /// The extended twin as the twin runs it: its base and the running
 /// estimate.
 #[derive(Debug, Clone)]
@@ -476,18 +497,31 @@ impl KineticEstimator {
         if dof > 0.0 { nis / dof } else { 0.0 }
     }
 
-    /// Whether the profile still describes the vessel well enough for the
-    /// yaw balance to compare the propellers: the yaw damping and mass
-    /// errors within [`KineticConfig::plausible_profile_sigmas`] of their
-    /// prior, and the data explained
-    /// ([`KineticConfig::max_explained_nis_per_dof`]).
-    fn profile_describes_vessel(&self, state: &KineticState, config: &KineticConfig) -> bool {
+    /// Where the profile no longer describes the vessel well enough for the
+    /// yaw balance to compare the propellers, what shows it: a yaw damping
+    /// or mass error beyond [`KineticConfig::plausible_profile_sigmas`] of
+    /// its prior, or data unexplained
+    /// ([`KineticConfig::max_explained_nis_per_dof`]); `None` where it does.
+    fn profile_mismatch(
+        &self,
+        state: &KineticState,
+        config: &KineticConfig,
+    ) -> Option<ProfileMismatch> {
         let k = config.plausible_profile_sigmas;
         // `profile_sigma` is in the faults' order from the surge damping on.
-        let plausible = [fault::YAW_DAMPING, fault::MASS]
-            .into_iter()
-            .all(|i| state.theta[i].abs() <= k * config.profile_sigma[i - fault::SURGE_DAMPING]);
-        plausible && self.nis_per_dof() <= config.max_explained_nis_per_dof
+        let bound = |i: usize| k * config.profile_sigma[i - fault::SURGE_DAMPING];
+        let m = ProfileMismatch {
+            yaw_damping_error: state.theta[fault::YAW_DAMPING],
+            yaw_damping_bound: bound(fault::YAW_DAMPING),
+            mass_error: state.theta[fault::MASS],
+            mass_bound: bound(fault::MASS),
+            nis_per_dof: self.nis_per_dof(),
+            max_nis_per_dof: config.max_explained_nis_per_dof,
+        };
+        let describes = m.yaw_damping_error.abs() <= m.yaw_damping_bound
+            && m.mass_error.abs() <= m.mass_bound
+            && m.nis_per_dof <= m.max_nis_per_dof;
+        (!describes).then_some(m)
     }
 
     /// Moves the running means of the heading and the yaw rate towards the
@@ -1136,7 +1170,8 @@ impl VesselTwin {
                 let yaw_balance_told = self.kinetic.yaw_balance_told(&self.config.kinetic)
                     && self
                         .kinetic
-                        .profile_describes_vessel(k, &self.config.kinetic);
+                        .profile_mismatch(k, &self.config.kinetic)
+                        .is_none();
                 let r = self
                     .kinetic
                     .base
@@ -1202,6 +1237,15 @@ impl VesselTwin {
     /// The seed method's filter state, if running.
     pub fn seed_state(&self) -> Option<&AekfState<4, 4, 2>> {
         self.seed.state.as_ref()
+    }
+
+    /// Where the extended twin withholds the comparison of the propellers
+    /// because its profile does not describe the vessel, what shows it
+    /// ([`KineticConfig::plausible_profile_sigmas`]); `None` where the
+    /// profile describes it, or the extended twin is not running.
+    pub fn profile_mismatch(&self) -> Option<ProfileMismatch> {
+        let state = self.kinetic.state.as_ref()?;
+        self.kinetic.profile_mismatch(state, &self.config.kinetic)
     }
 
     /// The extended twin's filter state, if running.

@@ -900,6 +900,18 @@ impl Analyzer<'_> {
                 .map(|f| f.effectiveness_ratio())
                 .filter(|(v, s)| v.is_finite() && s.is_finite())
                 .map(|(value, sigma)| Ratio { value, sigma }),
+            profile_mismatch: self
+                .twin
+                .profile_mismatch()
+                .filter(|_| observable)
+                .map(|m| ProfileMismatchResult {
+                    yaw_damping_error: m.yaw_damping_error,
+                    yaw_damping_bound: m.yaw_damping_bound,
+                    mass_error: m.mass_error,
+                    mass_bound: m.mass_bound,
+                    nis_per_dof: m.nis_per_dof,
+                    max_nis_per_dof: m.max_nis_per_dof,
+                }),
             note: if observable {
                 KINETIC_NOTE
             } else {

@@ -150,6 +150,25 @@ pub struct Ratio {
     pub sigma: f64,
 }
 
+/// Why the comparison of the propellers is withheld: the profile does not
+/// describe the vessel (`twin_core::twin::ProfileMismatch`, docs/model.md
+/// section 10).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ProfileMismatchResult {
+    /// The relative error of the profile's yaw damping the filter reached.
+    pub yaw_damping_error: f64,
+    /// The largest it may be (three of its prior standard deviations).
+    pub yaw_damping_bound: f64,
+    /// The relative error of the profile's mass the filter reached.
+    pub mass_error: f64,
+    /// The largest it may be.
+    pub mass_bound: f64,
+    /// The NIS per degree of freedom over the filter's memory.
+    pub nis_per_dof: f64,
+    /// The largest it may be.
+    pub max_nis_per_dof: f64,
+}
+
 /// Both thrusters.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ThrustersResult {
@@ -163,6 +182,10 @@ pub struct ThrustersResult {
     pub onset: Option<String>,
     /// What a straight run can tell even when the losses are not excited.
     pub effectiveness_ratio: Option<Ratio>,
+    /// At the end of the log, why the comparison of the propellers is
+    /// withheld, where the profile does not describe the vessel (`null`
+    /// where it does).
+    pub profile_mismatch: Option<ProfileMismatchResult>,
     /// What the figures are.
     pub note: &'static str,
     /// Port.
