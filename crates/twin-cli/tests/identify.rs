@@ -217,12 +217,22 @@ fn other_simulator(dir: &Path, args: &[&str]) {
     run(dir, "python3", &args, hint);
 }
 
-/// `twin analyze --json` of `log` on `profile`: each propeller's final
-/// `(loss, status)`, and whether an alarm ever declared it FAULT.
-fn losses_on(dir: &Path, log: &str, profile: &str) -> [(f64, String, bool); 2] {
+/// What one `twin analyze --json` of a log on a profile says.
+struct Reading {
+    /// Each propeller's final `(loss, status)`, and whether an alarm ever
+    /// declared it FAULT.
+    losses: [(f64, String, bool); 2],
+    /// Whether it ends with the comparison of the propellers withheld
+    /// because the profile does not describe the vessel
+    /// (`thrusters.profile_mismatch`).
+    withheld: bool,
+}
+
+/// `twin analyze --json` of `log` on `profile`.
+fn analyze_on(dir: &Path, log: &str, profile: &str) -> Reading {
     let json = twin(dir, &["analyze", log, "--profile", profile, "--json"]);
     let report: serde_json::Value = serde_json::from_str(&json).unwrap();
-    ["port", "starboard"].map(|side| {
+    let losses = ["port", "starboard"].map(|side| {
         let t = &report["thrusters"][side];
         let ever_fault = report["alarms"]
             .as_array()
@@ -234,16 +244,11 @@ fn losses_on(dir: &Path, log: &str, profile: &str) -> [(f64, String, bool); 2] {
             t["status"].as_str().unwrap().to_owned(),
             ever_fault,
         )
-    })
-}
-
-/// Whether `twin analyze --json` of `log` on `profile` ends with the
-/// comparison of the propellers withheld because the profile does not
-/// describe the vessel (`thrusters.profile_mismatch`).
-fn withheld_on(dir: &Path, log: &str, profile: &str) -> bool {
-    let json = twin(dir, &["analyze", log, "--profile", profile, "--json"]);
-    let report: serde_json::Value = serde_json::from_str(&json).unwrap();
-    !report["thrusters"]["profile_mismatch"].is_null()
+    });
+    Reading {
+        losses,
+        withheld: !report["thrusters"]["profile_mismatch"].is_null(),
+    }
 }
 
 /// The judgement of a port loss of 0.25 read on an identified profile.
@@ -274,8 +279,9 @@ fn a_profile_identified_from_a_healthy_trial_finds_a_later_port_loss_on_both_sim
         simulate_shipped(&dir, scenario, log);
     }
     identify(&dir, "trial.nmea", "heavy.toml");
-    assert_port_loss_found("twin-sim", &losses_on(&dir, "loss.nmea", "heavy.toml"));
-    assert!(!withheld_on(&dir, "loss.nmea", "heavy.toml"));
+    let reading = analyze_on(&dir, "loss.nmea", "heavy.toml");
+    assert_port_loss_found("twin-sim", &reading.losses);
+    assert!(!reading.withheld);
 
     // The independent simulator: its own hull, guidance and sensors, the
     // same changes of mass and damping; a healthy lawn-mower, then another
@@ -308,7 +314,7 @@ fn a_profile_identified_from_a_healthy_trial_finds_a_later_port_loss_on_both_sim
     identify(&dir, "other-trial.jsonl", "other-heavy.toml");
     assert_port_loss_found(
         "othersim",
-        &losses_on(&dir, "other-loss.jsonl", "other-heavy.toml"),
+        &analyze_on(&dir, "other-loss.jsonl", "other-heavy.toml").losses,
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -330,8 +336,8 @@ fn on_the_otters_profile_the_heavy_vessel_raises_no_false_fault() {
     ] {
         simulate_shipped(&dir, scenario, "trial.nmea");
         // And the twin says why it is silent.
-        assert!(withheld_on(&dir, "trial.nmea", otter), "{scenario}");
-        let losses = losses_on(&dir, "trial.nmea", otter);
+        let Reading { losses, withheld } = analyze_on(&dir, "trial.nmea", otter);
+        assert!(withheld, "{scenario}");
         for ((side, (_, status, ever_fault)), healthy) in
             ["port", "starboard"].iter().zip(&losses).zip(healthy)
         {
