@@ -123,6 +123,14 @@ What is around the model (all this simulator's own)
                    their stamps (s); the heading is not delayed
     lever_arm      the antenna sits (x forward, y starboard) m from the origin
     loss           one propeller gives (1 - loss) of its thrust (port or starboard)
+  The craft itself (--vessel otter|workboat, a named set of the scales
+  below, each overridable; --mass-scale, --added-mass-scale, --surge-damping-scale,
+  --sway-damping-scale, --yaw-damping-scale, --crossflow-scale,
+  --thrust-scale, --size-scale, --propeller-arm-scale; 1 = Fossen's Otter):
+  factors on its numbers; the size scales every length of the hull (its
+  inertias by the square, its displacement by the cube), not the
+  propellers' arm. The autopilot stays designed on the Otter's numbers, or
+  on those of a similar hull of the given size.
 
 How it differs from the project's simulator (crates/twin-sim)
 -------------------------------------------------------------
@@ -293,49 +301,67 @@ class VesselScales:
     yaw_damping: float = 1.0  # linear and quadratic yaw damping
     crossflow: float = 1.0  # cross-flow drag
     thrust: float = 1.0  # thrust coefficients, both propellers
+    # Every length of the hull (geometric similarity): its length and beams,
+    # the positions of the CG and payload, the radii of gyration (so the
+    # inertias, rigid and added, by its square on top of the mass scales)
+    # and the hydrostatics of a hull that size (its displacement by the
+    # cube), not the propellers' arm. A hull s times as long wants mass and
+    # added mass near s^3.
+    size: float = 1.0
+    # The propellers' distance from the centre line (the size leaves it).
+    propeller_arm: float = 1.0
 
 
 def otter_parameters(scales: VesselScales | None = None) -> OtterParameters:
     """Derives the Otter's model from Fossen's data (module docstring), with
-    `scales` applied to its mass, added mass, damping and thrust."""
+    `scales` applied to its size, mass, added mass, damping, propeller arm
+    and thrust (the `--*-scale` arguments)."""
     sc = scales or VesselScales()
     g, rho = GRAVITY_MPS2, WATER_DENSITY_KGPM3
-    length, beam = 2.0, 1.08
+    size = sc.size
+    length, beam = 2.0 * size, 1.08 * size
     hull_kg, payload_kg = 55.0, PAYLOAD_KG
     total_kg = hull_kg + payload_kg
-    hull_cg = np.array([0.2, 0.0, -0.2])
-    payload_at = np.array(PAYLOAD_AT_M)
-    cg = (hull_kg * hull_cg + payload_kg * payload_at) / total_kg
+    def masses(size):
+        """(rigid-body and added mass matrices at CO, CG) of the hull
+        `size` times the Otter's, with the Otter's masses."""
+        length, beam = 2.0 * size, 1.08 * size
+        hull_cg = size * np.array([0.2, 0.0, -0.2])
+        payload_at = size * np.array(PAYLOAD_AT_M)
+        cg = (hull_kg * hull_cg + payload_kg * payload_at) / total_kg
+        # Inertia about the CG as otter.py forms it: the hull's radii of
+        # gyration plus the parallel-axis terms of hull and payload.
+        radii = np.array([0.4 * beam, 0.25 * length, 0.25 * length])
+        s_cg, s_payload = skew(cg), skew(payload_at)
+        inertia = (
+            hull_kg * np.diag(radii**2)
+            - hull_kg * s_cg @ s_cg
+            - payload_kg * s_payload @ s_payload
+        )
+        m_rb_cg = np.zeros((6, 6))
+        m_rb_cg[0:3, 0:3] = total_kg * np.eye(3)
+        m_rb_cg[3:6, 3:6] = inertia
+        h_cg = shift_matrix(cg)
+        added = np.diag(
+            [
+                0.1 * hull_kg,
+                1.5 * hull_kg,
+                1.0 * hull_kg,
+                0.2 * inertia[0, 0],
+                0.8 * inertia[1, 1],
+                1.7 * inertia[2, 2],
+            ]
+        )
+        return h_cg.T @ m_rb_cg @ h_cg, added, cg
 
-    pontoon_beam, pontoon_y = 0.25, 0.395
+    m_rb, added, cg = masses(size)
+    pontoon_beam, pontoon_y = 0.25 * size, 0.395 * size
     waterplane_coeff, block_coeff = 0.75, 0.4
-    volume = total_kg / rho
+    # The displacement of a hull this size (the mass scales leave the
+    # hydrostatics as they are).
+    volume = total_kg * size**3 / rho
     draft = volume / (2.0 * block_coeff * pontoon_beam * length)
 
-    # Inertia about the CG as otter.py forms it: the hull's radii of gyration
-    # plus the parallel-axis terms of hull and payload.
-    radii = np.array([0.4 * beam, 0.25 * length, 0.25 * length])
-    s_cg, s_payload = skew(cg), skew(payload_at)
-    inertia = (
-        hull_kg * np.diag(radii**2)
-        - hull_kg * s_cg @ s_cg
-        - payload_kg * s_payload @ s_payload
-    )
-    m_rb_cg = np.zeros((6, 6))
-    m_rb_cg[0:3, 0:3] = total_kg * np.eye(3)
-    m_rb_cg[3:6, 3:6] = inertia
-    h_cg = shift_matrix(cg)
-    m_rb = h_cg.T @ m_rb_cg @ h_cg
-    added = np.diag(
-        [
-            0.1 * hull_kg,
-            1.5 * hull_kg,
-            1.0 * hull_kg,
-            0.2 * inertia[0, 0],
-            0.8 * inertia[1, 1],
-            1.7 * inertia[2, 2],
-        ]
-    )
     mass = sc.mass * m_rb + sc.added_mass * added
     mass = 0.5 * (mass + mass.T)
 
@@ -363,7 +389,7 @@ def otter_parameters(scales: VesselScales | None = None) -> OtterParameters:
     g33 = rho * g * 2.0 * pontoon_area
     g44 = rho * g * volume * gm_t
     g55 = rho * g * volume * gm_l
-    flotation_centre_x = -0.2
+    flotation_centre_x = -0.2 * size
     h_f = shift_matrix([flotation_centre_x, 0.0, 0.0])
     restoring = h_f.T @ np.diag([0.0, 0.0, g33, g44, g55, 0.0]) @ h_f
 
@@ -373,7 +399,8 @@ def otter_parameters(scales: VesselScales | None = None) -> OtterParameters:
     max_speed = 6.0 * 0.5144
     # The time constants of sway and yaw are Fossen's for his Otter: the
     # damping derivatives come from its own (unscaled) masses, then scale.
-    nominal = m_rb + added
+    otter_rb, otter_added, _ = masses(1.0)
+    nominal = otter_rb + otter_added
     damping = (
         sc.surge_damping * 24.4 * g / max_speed,
         sc.sway_damping * nominal[1, 1] / 1.0,
@@ -405,7 +432,8 @@ def otter_parameters(scales: VesselScales | None = None) -> OtterParameters:
         linear_damping=damping,
         yaw_quadratic_factor_s=10.0,
         crossflow_coeff=sc.crossflow * 1.0,
-        propeller_offset_m=pontoon_y,
+        # The propellers' arm is its own scale's (the size leaves it).
+        propeller_offset_m=sc.propeller_arm * pontoon_y / size,
         thrust_coeff_ahead=sc.thrust * k_ahead,
         thrust_coeff_astern=sc.thrust * k_astern,
         shaft_max_radps=n_max,
@@ -664,25 +692,34 @@ class PurePursuit:
 
 
 class Autopilot:
-    """Heading PID with a rate-limited reference, speed PI, allocation."""
+    """Heading PID with a rate-limited reference, speed PI, allocation.
+
+    Designed on the Otter's yaw inertia, yaw damping and hull resistance
+    (not the simulated craft's: a perturbed craft meets a controller tuned
+    on the nominal one); for a hull `size` times the Otter's, on those of a
+    similar hull (yaw by size^5, surge by size^3)."""
 
     YAW_INERTIA_KGM2 = 42.65
     YAW_DAMPING_NMS = 42.65
     SURGE_DAMPING_NSPM = 24.4 * GRAVITY_MPS2 / (6.0 * 0.5144)
 
-    def __init__(self, params: OtterParameters, psi0: float):
+    def __init__(self, params: OtterParameters, psi0: float, size: float = 1.0):
         self.p = params
+        yaw, surge = size**5, size**3
+        self.yaw_inertia = self.YAW_INERTIA_KGM2 * yaw
+        self.yaw_damping = self.YAW_DAMPING_NMS * yaw
+        self.surge_damping = self.SURGE_DAMPING_NSPM * surge
         w, zeta = 1.0, 0.9
-        self.kp = self.YAW_INERTIA_KGM2 * w * w
-        self.kd = 2.0 * zeta * w * self.YAW_INERTIA_KGM2 - self.YAW_DAMPING_NMS
+        self.kp = self.yaw_inertia * w * w
+        self.kd = 2.0 * zeta * w * self.yaw_inertia - self.yaw_damping
         self.ki = self.kp * w / 10.0
         self.ref_tau_s = 1.5
         self.ref_rate_max = math.radians(15.0)
         self.psi_ref = psi0
         self.r_ref = 0.0
         self.heading_integral = 0.0
-        self.speed_kp = 120.0
-        self.speed_ki = 15.0
+        self.speed_kp = 120.0 * surge
+        self.speed_ki = 15.0 * surge
         self.speed_integral = 0.0
 
     def command(self, dt_s, psi, r, sog, course_d, speed_d):
@@ -693,7 +730,7 @@ class Autopilot:
         err = wrap_pi(self.psi_ref - psi)
         self.heading_integral = max(-2.0, min(2.0, self.heading_integral + err * dt_s))
         yaw_moment = (
-            self.YAW_DAMPING_NMS * self.r_ref
+            self.yaw_damping * self.r_ref
             + self.kp * err
             + self.kd * (self.r_ref - r)
             + self.ki * self.heading_integral
@@ -703,7 +740,7 @@ class Autopilot:
             -3.0, min(3.0, self.speed_integral + speed_err * dt_s)
         )
         surge_force = (
-            self.SURGE_DAMPING_NSPM * speed_d
+            self.surge_damping * speed_d
             + self.speed_kp * speed_err
             + self.speed_ki * self.speed_integral
         )
@@ -811,7 +848,7 @@ def simulate(cfg: RunConfig, fx: Effects):
     speed0 = float(plan.speed_mps[0])
     n0 = shaft_for_thrust_radps(params, 0.5 * params.linear_damping[0] * speed0)
     x = [0.0] * 6 + [speed0, 0.0, 0.0, 0.0, 0.0, 0.0] + [n0, n0]
-    pilot = Autopilot(params, 0.0)
+    pilot = Autopilot(params, 0.0, cfg.scales.size)
     cmd = (n0, n0)
 
     h = cfg.step_s
@@ -1072,6 +1109,40 @@ def effects_from_args(args, rng: np.random.Generator) -> Effects:
     return fx
 
 
+# Named craft: their scales on Fossen's Otter (the rest 1).
+VESSELS = {
+    "otter": {},
+    # The twin-propeller workboat of config/scenarios/identify_workboat.toml:
+    # twice the Otter's size (4 m), eight times its mass and added mass,
+    # propellers twice as far apart and six times as strong, its own damping.
+    "workboat": {
+        "size": 2.0,
+        "mass": 8.0,
+        "added_mass": 8.0,
+        "propeller_arm": 2.0,
+        "thrust": 6.0,
+        "surge_damping": 5.0,
+        "sway_damping": 8.0,
+        "yaw_damping": 24.0,
+    },
+}
+
+
+def vessel_scales(args) -> VesselScales:
+    """The craft's scales: the named vessel's, each overridden by its
+    --*-scale argument where given."""
+    preset = VESSELS[args.vessel]
+    fields = ("mass", "added_mass", "surge_damping", "sway_damping",
+              "yaw_damping", "crossflow", "thrust", "size", "propeller_arm")
+    given = {
+        name: getattr(args, f"{name}_scale")
+        if getattr(args, f"{name}_scale") is not None
+        else preset.get(name, 1.0)
+        for name in fields
+    }
+    return VesselScales(**given)
+
+
 def parse_args(argv):
     ap = argparse.ArgumentParser(
         description="An independent 6-DOF Otter USV simulator (see the module doc)."
@@ -1104,9 +1175,11 @@ def parse_args(argv):
     ap.add_argument("--shaft-rate-hz", type=float, default=10.0)
     ap.add_argument("--gyro", action="store_true",
                     help="write a rate gyro's yaw_rate_radps into each fix's line")
+    ap.add_argument("--vessel", choices=tuple(VESSELS), default="otter",
+                    help="the craft's scales (VESSELS); a --*-scale given overrides its own")
     for name in ("mass", "added-mass", "surge-damping", "sway-damping",
-                 "yaw-damping", "crossflow", "thrust"):
-        ap.add_argument(f"--{name}-scale", type=float, default=1.0,
+                 "yaw-damping", "crossflow", "thrust", "size", "propeller-arm"):
+        ap.add_argument(f"--{name}-scale", type=float,
                         help=f"the craft's {name.replace('-', ' ')} times this")
     ap.add_argument("--duration-s", type=float, default=300.0)
     ap.add_argument("--step-s", type=float, default=0.05)
@@ -1160,15 +1233,7 @@ def main(argv=None) -> int:
         path=args.path,
         gyro=args.gyro,
         shaft_period_s=1.0 / args.shaft_rate_hz,
-        scales=VesselScales(
-            mass=args.mass_scale,
-            added_mass=args.added_mass_scale,
-            surge_damping=args.surge_damping_scale,
-            sway_damping=args.sway_damping_scale,
-            yaw_damping=args.yaw_damping_scale,
-            crossflow=args.crossflow_scale,
-            thrust=args.thrust_scale,
-        ),
+        scales=vessel_scales(args),
     )
     lines, truth = simulate(cfg, fx)
     with open(args.out, "w", encoding="utf-8") as f:

@@ -341,6 +341,7 @@ pub mod wire {
 /// loopback port, with a session to publish inputs and one to watch the
 /// outputs, both connected to it.
 pub mod daemon {
+    use std::path::Path;
     use std::time::Duration;
 
     use tokio_util::sync::CancellationToken;
@@ -351,7 +352,7 @@ pub mod daemon {
     use zenoh::sample::Sample;
 
     use crate::net::{config, free_port};
-    use crate::wire::Outputs;
+    use crate::wire::{Outputs, fault_of, receive_until};
 
     /// A running daemon and its two neighbours.
     pub struct Rig {
@@ -456,6 +457,28 @@ pub mod daemon {
             self.output.close().await.unwrap();
             self.daemon.close().await.unwrap();
             summary
+        }
+    }
+
+    /// Every fault the daemon publishes for `vessel` while `twin-replay`
+    /// plays `log` as fast as it takes it, until none has come for 3 s.
+    pub async fn replayed_faults(rig: &Rig, log: &Path, vessel: &str) -> Vec<FaultMessage> {
+        let sub = rig.collect(vessel).await;
+        let mut options =
+            twin_replay::ReplayOptions::new(twin_wire::VesselId::new(vessel).unwrap());
+        options.rate = twin_replay::Rate::Max;
+        let summary = twin_replay::replay_log(&rig.input, log, &options, |_| {})
+            .await
+            .unwrap();
+        assert!(summary.published.gnss > 100, "{summary:?}");
+        let mut faults = Vec::new();
+        loop {
+            let got = receive_until(&sub, Duration::from_secs(3), |_| false).await;
+            let before = faults.len();
+            faults.extend(got.iter().filter_map(fault_of));
+            if faults.len() == before {
+                return faults;
+            }
         }
     }
 

@@ -547,6 +547,7 @@ fn own_scenario(draw: &Draw) -> Scenario {
         yaw_damping_scale: v.yaw_damping,
         crossflow_drag_scale: v.crossflow,
         thrust_scale: v.thrust,
+        ..VesselSpec::default()
     });
     sc
 }

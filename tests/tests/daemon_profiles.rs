@@ -2,20 +2,23 @@
 //! the profile its rule in `[profiles]` names (the estimates are the
 //! offline twin's on that profile, not the Otter's), and its statistics
 //! say which; and a profile identified from a healthy trial of a vessel
-//! unlike the Otter lets the daemon find a later port loss on it.
+//! unlike the Otter (a 4 m workboat, on both of the project's simulators)
+//! lets the daemon find a later port loss on it.
 
+use std::path::{Path, PathBuf};
+use std::process::Command;
 use std::time::Duration;
 
 use twin_cli::identify::identify_path;
 use twin_core::diagnose::IdentifyConfig;
 use twin_core::twin::TwinConfig;
-use twin_sim::SensorEvent;
-use twin_tests::daemon::{drain, outputs, rig};
+use twin_tests::daemon::{drain, outputs, replayed_faults, rig};
+use twin_tests::peers::{python_with, repo_root};
+use twin_tests::trust::OTHER_SIMULATOR;
 use twin_tests::wire::{
     messages, offline, offline_with, receive_until, receive_until_fault, scenario, simulate,
 };
 use twin_wire::SourceChoice;
-use twin_wire::messages::{ActuatorCommand, encode_actuators, encode_gnss};
 use twin_wire::outputs::{FaultMessage, StatsMessage, ThrusterStatusName};
 use twin_wire::profile::VesselProfile;
 use twind::settings::Settings;
@@ -107,87 +110,110 @@ async fn each_vessel_runs_on_the_profile_its_rule_names() {
 /// of the truth, fixed before the run.
 const FOUND_WITHIN: f64 = 0.03;
 
+/// Runs the independent simulator with the workboat and `args`.
+fn other_workboat(args: &[&str]) {
+    let python = python_with("numpy", "python3 -m pip install -r requirements.txt");
+    let out = Command::new(python)
+        .arg(OTHER_SIMULATOR)
+        .args(["--vessel", "workboat"])
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// The profile identified from the healthy trial at `log`, from the
+/// workboat's shipped starting profile, written to `dir` as `name`.
+fn identified(dir: &Path, log: &Path, name: &str) -> PathBuf {
+    let start =
+        VesselProfile::from_file(&repo_root().join("config/profiles/workboat-start.toml")).unwrap();
+    let report = identify_path(
+        log,
+        SourceChoice::Best,
+        &start,
+        name,
+        &IdentifyConfig::default(),
+    )
+    .expect("an identification trial");
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, report.identified.to_toml()).unwrap();
+    path
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_profile_identified_from_a_healthy_trial_finds_a_later_port_loss_in_the_daemon() {
     let dir = std::env::temp_dir().join(format!("twind-identified-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    // The healthy identification trial of a vessel with twice the Otter's
-    // mass, 1.6 times its hull resistance and 0.7 times its yaw damping,
-    // logged as NMEA and identified as `twin identify` does.
-    let trial = twin_sim::simulate(&scenario("identify_heavy-otter")).expect("simulation");
-    let log = dir.join("trial.nmea");
-    twin_cli::simulate::write_nmea(&trial, std::fs::File::create(&log).unwrap()).unwrap();
-    let report = identify_path(
-        &log,
-        SourceChoice::Best,
-        &VesselProfile::otter(),
-        "heavy",
-        &IdentifyConfig::default(),
-    )
-    .expect("an identification trial");
-    let path = dir.join("heavy.toml");
-    std::fs::write(&path, report.identified.to_toml()).unwrap();
+    // The issue's vessel on both simulators: a healthy identification
+    // trial, identified as `twin identify` does from the workboat's
+    // starting profile; then the same vessel again, other noise, a 25 %
+    // port loss from 60 s, replayed into the daemon.
+    let write = |name: &str, file: &str| {
+        let run = twin_sim::simulate(&scenario(name)).expect("simulation");
+        let path = dir.join(file);
+        twin_cli::simulate::write_nmea(&run, std::fs::File::create(&path).unwrap()).unwrap();
+        path
+    };
+    let sim_trial = write("identify_workboat", "trial.nmea");
+    let sim_loss = write("identify_workboat_port-loss", "loss.nmea");
+    let (other_trial, other_loss) = (dir.join("other-trial.jsonl"), dir.join("other-loss.jsonl"));
+    other_workboat(&["--seed", "5", "--out", other_trial.to_str().unwrap()]);
+    other_workboat(&[
+        "--seed",
+        "6",
+        "--effect",
+        "loss",
+        "--loss-side",
+        "port",
+        "--loss",
+        "0.25",
+        "--loss-onset-s",
+        "60",
+        "--out",
+        other_loss.to_str().unwrap(),
+    ]);
+    let profiles = [
+        identified(&dir, &sim_trial, "workboat-sim"),
+        identified(&dir, &other_trial, "workboat-other"),
+    ];
     let settings = Settings::from_toml(&format!(
         "[diagnose]\nenabled = false\n\
-         [profiles]\nfiles = [{:?}]\nvessels = [{{ id = \"heavy-*\", profile = \"heavy\" }}]\n",
-        path.display().to_string()
+         [profiles]\nfiles = [{:?}, {:?}]\nvessels = [\
+         {{ id = \"sim-*\", profile = \"workboat-sim\" }}, \
+         {{ id = \"other-*\", profile = \"workboat-other\" }}]\n",
+        profiles[0].display().to_string(),
+        profiles[1].display().to_string(),
     ))
     .unwrap();
 
-    // The same vessel again, other noise, a 25 % port loss from 60 s.
-    let run = twin_sim::simulate(&scenario("identify_heavy-otter_port-loss")).expect("simulation");
-    // The contract's fix carries a course; the receiver gives none at rest,
-    // so the first fixes of a trial from rest are not sent.
-    let msgs: Vec<_> = run
-        .events
-        .iter()
-        .filter_map(|e| match e {
-            SensorEvent::Gnss(f) => Some(("gnss", encode_gnss(f, true).ok()?)),
-            SensorEvent::PropellerMeasured(p) => Some((
-                "actuators",
-                encode_actuators(&ActuatorCommand::Speeds(*p), true).unwrap(),
-            )),
-            _ => None,
-        })
-        .collect();
-    let end = offline_with(&msgs, report.identified.twin_config(TwinConfig::default()));
-    let end_time = FaultMessage::new(
-        "heavy-1",
-        &end.fault_report(end.state_report().unwrap().time_s),
-        true,
-    )
-    .time;
-
     let rig = rig(settings).await;
-    let sub = rig.collect("heavy-1").await;
-    rig.publish("heavy-1", &msgs).await;
-    let mut samples = receive_until_fault(&sub, &end_time).await;
+    for (vessel, log) in [("sim-1", &sim_loss), ("other-1", &other_loss)] {
+        let faults = replayed_faults(&rig, log, vessel).await;
+        let last = faults.last().expect("faults published");
+        let (port, stb) = (&last.thrusters.port, &last.thrusters.starboard);
+        let (port_loss, stb_loss) = (port.loss.unwrap(), stb.loss.unwrap());
+        assert!(
+            (port_loss - 0.25).abs() <= FOUND_WITHIN,
+            "{vessel}: port loss {port_loss} (truth 0.25)"
+        );
+        assert!(
+            stb_loss.abs() <= FOUND_WITHIN,
+            "{vessel}: starboard loss {stb_loss} (truth 0)"
+        );
+        assert_eq!(port.status, ThrusterStatusName::Fault, "{vessel}");
+        let stb_faults = faults
+            .iter()
+            .filter(|f| f.thrusters.starboard.status == ThrusterStatusName::Fault)
+            .count();
+        assert_eq!(
+            stb_faults, 0,
+            "{vessel}: the healthy starboard propeller declared FAULT"
+        );
+    }
     rig.stop().await;
-    samples.extend(drain(&sub));
-
-    let faults: Vec<FaultMessage> = outputs(&samples, "twin/fault");
-    let last = faults
-        .iter()
-        .find(|f| f.time == end_time)
-        .expect("the last fault");
-    let (port, stb) = (&last.thrusters.port, &last.thrusters.starboard);
-    let (port_loss, stb_loss) = (port.loss.unwrap(), stb.loss.unwrap());
-    assert!(
-        (port_loss - 0.25).abs() <= FOUND_WITHIN,
-        "port loss {port_loss} (truth 0.25)"
-    );
-    assert!(
-        stb_loss.abs() <= FOUND_WITHIN,
-        "starboard loss {stb_loss} (truth 0)"
-    );
-    assert_eq!(port.status, ThrusterStatusName::Fault);
-    let stb_faults = faults
-        .iter()
-        .filter(|f| f.thrusters.starboard.status == ThrusterStatusName::Fault)
-        .count();
-    assert_eq!(
-        stb_faults, 0,
-        "the healthy starboard propeller declared FAULT"
-    );
     let _ = std::fs::remove_dir_all(&dir);
 }

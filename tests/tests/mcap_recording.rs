@@ -11,13 +11,12 @@
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::time::Duration;
 
 use serde_json::Value;
 use twin_cli::analyze::{AnalyzeOptions, analyze_path};
-use twin_tests::daemon::{outputs, rig, rig_with};
+use twin_tests::daemon::{outputs, replayed_faults, rig, rig_with};
 use twin_tests::peers::{repo_root, require_python_module};
-use twin_tests::wire::{fault_of, messages, receive_until, receive_until_fault, simulate};
+use twin_tests::wire::{messages, receive_until_fault, simulate};
 use twin_wire::outputs::FaultMessage;
 use twind::settings::Settings;
 
@@ -142,23 +141,10 @@ fn twin_analyze_mcap_is_read_by_pypi_mcap_with_every_message_of_the_run() {
 /// The last fault the daemon publishes for `vessel` while `twin-replay`
 /// plays `file` as fast as it takes it.
 async fn replayed_fault(rig: &twin_tests::daemon::Rig, file: &Path, vessel: &str) -> FaultMessage {
-    let sub = rig.collect(vessel).await;
-    let mut options = twin_replay::ReplayOptions::new(twin_wire::VesselId::new(vessel).unwrap());
-    options.rate = twin_replay::Rate::Max;
-    let summary = twin_replay::replay_log(&rig.input, file, &options, |_| {})
+    replayed_faults(rig, file, vessel)
         .await
-        .unwrap();
-    assert!(summary.published.gnss > 100, "{summary:?}");
-    // Until no output has come for 3 s.
-    let mut last = None;
-    loop {
-        let got = receive_until(&sub, Duration::from_secs(3), |_| false).await;
-        match got.iter().rev().find_map(fault_of) {
-            Some(f) => last = Some(f),
-            None => break,
-        }
-    }
-    last.expect("a fault")
+        .pop()
+        .expect("a fault")
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

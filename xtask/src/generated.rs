@@ -90,6 +90,17 @@ pub const BLOCKS: &[Block] = &[
         shape: Shape::Fenced,
     },
     Block {
+        name: "identify-workboat",
+        file: "docs/identification.md",
+        command: "cargo build --release -q -p twin-cli && r=$PWD && t=$r/target/release/twin && cd \"$(mktemp -d)\" \
+                  && $t simulate --scenario $r/config/scenarios/identify_workboat.toml --out trial.nmea >/dev/null 2>&1 \
+                  && $t identify trial.nmea --profile $r/config/profiles/workboat-start.toml --name workboat --out workboat.toml 2>/dev/null \
+                  && $t simulate --scenario $r/config/scenarios/identify_workboat_port-loss.toml --out loss.nmea >/dev/null 2>&1 \
+                  && echo && echo 'twin analyze loss.nmea --profile workboat.toml' \
+                  && $t analyze loss.nmea --profile workboat.toml | grep -E '^  (profile|thrusters) |^    (port|starboard) '",
+        shape: Shape::Fenced,
+    },
+    Block {
         name: "bench-core",
         file: "docs/performance.md",
         command: "cargo run --release -q -p twin-bench -- core",
@@ -111,6 +122,12 @@ pub const BLOCKS: &[Block] = &[
         name: "bench-diagnose",
         file: "docs/performance.md",
         command: "cargo bench -q -p twin-cli --bench diagnose 2>/dev/null | grep -E '^diagnose/|time:'",
+        shape: Shape::Fenced,
+    },
+    Block {
+        name: "bench-identify",
+        file: "docs/performance.md",
+        command: "cargo bench -q -p twin-cli --bench identify 2>/dev/null | grep -E '^identify/|time:'",
         shape: Shape::Fenced,
     },
     Block {

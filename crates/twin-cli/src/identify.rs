@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
-use twin_core::diagnose::{Identification, IdentifyConfig, identify, prepare};
+use twin_core::diagnose::{Fallback, Identification, IdentifyConfig, identify, prepare};
 use twin_wire::assemble::SourceChoice;
 use twin_wire::profile::{IdentifiedProfile, VesselProfile};
 
@@ -39,15 +39,20 @@ pub struct ParameterJson {
     /// where the likelihood has no curvature to give one (infinite: not
     /// identifiable).
     pub sigma: f64,
-    /// `identified`, `not_identifiable` (kept from the starting profile) or
-    /// `held` (the force scale, kept from the starting profile).
+    /// `identified`, `not_identifiable` (see `fallback`) or `held` (the
+    /// force scale, kept from the starting profile).
     pub verdict: &'static str,
+    /// What the written profile holds when the trial did not pin the
+    /// parameter down: `starting_profile` (its value there) or
+    /// `follows_the_mass` (the yaw inertia: the starting profile's times
+    /// the identified mass scale, its radius of gyration kept).
+    pub fallback: &'static str,
 }
 
 /// What `twin identify` reports (`--json`).
 #[derive(Debug, Clone, Serialize)]
 pub struct IdentifyReport {
-    /// `twin-identify/1`.
+    /// `twin-identify/2`.
     pub schema: &'static str,
     /// The trial.
     pub log: String,
@@ -119,6 +124,10 @@ fn report(log: &str, start: &VesselProfile, name: &str, found: &Identification) 
             } else {
                 "not_identifiable"
             },
+            fallback: match e.fallback {
+                Fallback::StartingProfile => "starting_profile",
+                Fallback::FollowsTheMass => "follows_the_mass",
+            },
         })
         .collect();
     let heldout_rmse_m = found
@@ -129,7 +138,7 @@ fn report(log: &str, start: &VesselProfile, name: &str, found: &Identification) 
         .map(|((h, before), (_, after))| [*h, *before, *after])
         .collect();
     IdentifyReport {
-        schema: "twin-identify/1",
+        schema: "twin-identify/2",
         log: log.to_owned(),
         start_profile: start.identity(),
         profile: identified.identity(),
@@ -158,6 +167,9 @@ pub fn render_text(r: &IdentifyReport) -> String {
     for p in &r.parameters {
         let verdict = match p.verdict {
             "held" => "held: the force scale, from the starting profile",
+            "not_identifiable" if p.fallback == "follows_the_mass" => {
+                "not identifiable from this trial: follows the mass"
+            }
             "not_identifiable" => {
                 "not identifiable from this trial: kept from the starting profile"
             }

@@ -110,6 +110,15 @@ impl VesselParams {
         p
     }
 
+    /// These parameters with the yaw inertia, rigid and added, times
+    /// `scale` (the mass and the surge and sway added mass kept).
+    pub fn with_yaw_inertia_scaled(&self, scale: f64) -> Self {
+        let mut p = *self;
+        p.mass_matrix[(2, 2)] *= scale;
+        p.added_mass[2] *= scale;
+        p
+    }
+
     /// Thrust of one propeller at shaft speed `n_radps` (saturated to the
     /// shaft's limits), N: `k n |n|` with the ahead or astern coefficient.
     pub fn thrust_n(&self, n_radps: f64) -> f64 {

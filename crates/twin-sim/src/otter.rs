@@ -188,15 +188,41 @@ pub struct VesselScales {
     pub crossflow_drag: f64,
     /// Thrust coefficients, ahead and astern, both propellers.
     pub thrust: f64,
+    /// Every length of the hull (geometric similarity): its length, pontoon
+    /// beam and draft, the centre of gravity's offset and the radii of
+    /// gyration (the rigid and the added yaw inertia by its square, on top
+    /// of their mass scales). A hull `s` times as long displaces `s^3`
+    /// times the water at the same draft ratio: give the mass scale too.
+    pub size: f64,
+    /// The propellers' lateral distance from the centre line.
+    pub propeller_arm: f64,
+}
+
+impl Default for VesselScales {
+    fn default() -> Self {
+        Self {
+            mass: 1.0,
+            added_mass: 1.0,
+            surge_damping: 1.0,
+            sway_damping: 1.0,
+            yaw_damping: 1.0,
+            crossflow_drag: 1.0,
+            thrust: 1.0,
+            size: 1.0,
+            propeller_arm: 1.0,
+        }
+    }
 }
 
 impl OtterParams {
-    /// These parameters with `scales` applied: the mass matrix as its rigid
-    /// part (`m`, `m x_g`, the inertia about the origin) times the mass scale
-    /// plus its added part times the added-mass scale; the damping
-    /// derivatives, the cross-flow drag (through the hull's drag-bearing
-    /// draft) and both thrust coefficients times theirs. The shaft limits
-    /// are kept: a stronger propeller gives more thrust at the same speed.
+    /// These parameters with `scales` applied: the rigid-body mass matrix
+    /// (`m`, `m x_g`, the inertia about the origin) times the mass scale and
+    /// the added part times the added-mass scale, with the size scale on the
+    /// lengths (`x_g` by it, the yaw inertias by its square, the hull's
+    /// length, pontoon beam and draft by it); the damping derivatives, the
+    /// cross-flow drag, the propellers' lateral arm and both thrust
+    /// coefficients times theirs. The shaft limits are kept: a stronger
+    /// propeller gives more thrust at the same speed.
     pub fn scaled(&self, scales: &VesselScales) -> Self {
         let added = Matrix3::from_diagonal(&Vector3::new(
             self.added_mass_surge_kg,
@@ -204,16 +230,39 @@ impl OtterParams {
             self.added_inertia_yaw_kgm2,
         ));
         let rigid = self.mass_matrix - added;
+        // The rigid part's entries by their dimension of length: kg, kg m, kg m^2.
+        let size = scales.size;
+        let length_power = Matrix3::new(
+            1.0,
+            1.0,
+            1.0, //
+            1.0,
+            1.0,
+            size, //
+            1.0,
+            size,
+            size * size,
+        );
         let mut p = self.clone();
         p.mass_kg *= scales.mass;
-        p.mass_matrix = rigid * scales.mass + added * scales.added_mass;
+        p.cg_x_m *= size;
         p.added_mass_surge_kg *= scales.added_mass;
         p.added_mass_sway_kg *= scales.added_mass;
-        p.added_inertia_yaw_kgm2 *= scales.added_mass;
+        p.added_inertia_yaw_kgm2 *= scales.added_mass * size * size;
+        p.mass_matrix = rigid.component_mul(&length_power) * scales.mass
+            + Matrix3::from_diagonal(&Vector3::new(
+                p.added_mass_surge_kg,
+                p.added_mass_sway_kg,
+                p.added_inertia_yaw_kgm2,
+            ));
+        p.length_m *= size;
+        p.pontoon_beam_m *= size;
+        p.draft_m *= size;
         p.x_u_n_per_mps *= scales.surge_damping;
         p.y_v_n_per_mps *= scales.sway_damping;
         p.n_r_nm_per_radps *= scales.yaw_damping;
         p.crossflow_scale *= scales.crossflow_drag;
+        p.propeller_arm_m *= scales.propeller_arm;
         p.thrust_coeff_ahead_n_per_radps2 *= scales.thrust;
         p.thrust_coeff_astern_n_per_radps2 *= scales.thrust;
         p
@@ -528,6 +577,55 @@ mod tests {
             let n = p.shaft_speed_for_thrust_radps(t);
             assert!((p.thrust_n(n) - t).abs() < 1e-9, "{t} -> {n}");
         }
+    }
+
+    #[test]
+    fn a_hull_twice_the_size_scales_lengths_and_inertias_by_their_dimensions() {
+        let otter = OtterParams::default();
+        let big = otter.scaled(&VesselScales {
+            size: 2.0,
+            mass: 8.0,
+            added_mass: 8.0,
+            propeller_arm: 2.0,
+            ..VesselScales::default()
+        });
+        // kg by the mass scale, kg m by it and the size, kg m^2 by it and
+        // the size squared; the added part likewise.
+        let ratio = big.mass_matrix.component_div(&otter.mass_matrix);
+        for (entry, want) in [((0, 0), 8.0), ((1, 1), 8.0), ((1, 2), 16.0), ((2, 2), 32.0)] {
+            assert!(
+                (ratio[entry] - want).abs() < 1e-12,
+                "{entry:?}: {}",
+                ratio[entry]
+            );
+        }
+        assert!((big.mass_kg * big.cg_x_m - big.mass_matrix[(1, 2)]).abs() < 1e-9);
+        assert!((big.added_inertia_yaw_kgm2 / otter.added_inertia_yaw_kgm2 - 32.0).abs() < 1e-12);
+        assert_eq!(
+            [
+                big.length_m,
+                big.pontoon_beam_m,
+                big.draft_m,
+                big.propeller_arm_m
+            ],
+            [
+                2.0 * otter.length_m,
+                2.0 * otter.pontoon_beam_m,
+                2.0 * otter.draft_m,
+                0.79
+            ]
+        );
+        // The section's shape, and so its drag coefficient, is kept.
+        assert_eq!(
+            big.crossflow_drag_coefficient(),
+            otter.crossflow_drag_coefficient()
+        );
+        // The propellers' arm is its own scale's, not the size's.
+        let wide = otter.scaled(&VesselScales {
+            size: 2.0,
+            ..VesselScales::default()
+        });
+        assert_eq!(wide.propeller_arm_m, otter.propeller_arm_m);
     }
 
     #[test]

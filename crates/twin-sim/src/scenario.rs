@@ -138,6 +138,13 @@ pub struct VesselSpec {
     /// Both propellers' thrust coefficients, ahead and astern (the same
     /// factor on both sides: a difference between the sides is a loss).
     pub thrust_scale: f64,
+    /// Every length of the hull: length, pontoon beam, draft, the centre of
+    /// gravity's offset and the radii of gyration (the yaw inertias by its
+    /// square). A hull `s` times as long wants `mass_scale` and
+    /// `added_mass_scale` near `s^3`.
+    pub size_scale: f64,
+    /// The propellers' lateral distance from the centre line.
+    pub propeller_arm_scale: f64,
 }
 
 impl Default for VesselSpec {
@@ -150,6 +157,8 @@ impl Default for VesselSpec {
             yaw_damping_scale: 1.0,
             crossflow_drag_scale: 1.0,
             thrust_scale: 1.0,
+            size_scale: 1.0,
+            propeller_arm_scale: 1.0,
         }
     }
 }
@@ -1356,6 +1365,8 @@ impl VesselSpec {
             yaw_damping: positive("vessel.yaw_damping_scale", self.yaw_damping_scale)?,
             crossflow_drag: positive("vessel.crossflow_drag_scale", self.crossflow_drag_scale)?,
             thrust: positive("vessel.thrust_scale", self.thrust_scale)?,
+            size: positive("vessel.size_scale", self.size_scale)?,
+            propeller_arm: positive("vessel.propeller_arm_scale", self.propeller_arm_scale)?,
         })
     }
 }

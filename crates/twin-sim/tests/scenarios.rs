@@ -33,6 +33,8 @@ fn shipped_scenarios_are_the_seed_trial_matrix() {
         "diagnose_base",
         "identify_heavy-otter",
         "identify_heavy-otter_port-loss",
+        "identify_workboat",
+        "identify_workboat_port-loss",
     ];
     for extra in extras {
         let s = shipped(extra);

@@ -3,8 +3,9 @@
 //! gain on the part of the trial the fit never saw.
 //!
 //! # Method
-//! The profile's surge damping, yaw damping and mass (with its inertia and
-//! added mass, as one scale) are searched for the largest likelihood of
+//! The profile's surge damping, yaw damping, mass (with its inertia and
+//! added mass, as one scale) and yaw inertia (rigid and added, a further
+//! scale on it: the radius of gyration) are searched for the largest likelihood of
 //! the training part of the trial (the first `1 - holdout_fraction` of it)
 //! under the extended twin: both propellers healthy (losses held at zero),
 //! the current estimated, the velocities' process noise that of the water
@@ -26,7 +27,10 @@
 //! **Not excited.** A parameter whose standard deviation after the trial
 //! is above `identifiable_sigma` is reported as not identifiable from this
 //! trial (a straight run at one speed cannot give the mass, a run without
-//! turns cannot give the yaw damping) and keeps its starting value.
+//! turns cannot give the yaw damping) and keeps its starting value; the
+//! yaw inertia then follows the mass (the starting profile's radius of
+//! gyration is kept). The yaw's time constant is about a second, a few
+//! GNSS fixes, and a trial often leaves it so.
 //!
 //! **Judged on held-out data.** The starting and the identified profile are
 //! each run, with their errors held at zero, over the whole trial; the
@@ -40,17 +44,24 @@ use crate::estimator::{KineticConfig, Term};
 use crate::twin::TwinConfig;
 use crate::vessel::VesselParams;
 
-/// The parameters `identify` estimates, in the twin's order of the
-/// profile's errors.
-pub const IDENTIFIED_PARAMETERS: [&str; 4] = [
+/// The parameters `identify` estimates: the twin's order of the profile's
+/// errors (its mass-and-inertia error is the mass here), then the yaw
+/// inertia on its own, because a starting profile's inertia is a rule of
+/// thumb more often than its mass is.
+pub const IDENTIFIED_PARAMETERS: [&str; 5] = [
     "surge damping",
     "yaw damping",
     "thrust coefficients",
-    "mass and inertia",
+    "mass",
+    "yaw inertia",
 ];
 
 /// The index of the thrust coefficients in [`IDENTIFIED_PARAMETERS`].
 const THRUST: usize = 2;
+/// The index of the mass.
+const MASS: usize = 3;
+/// The index of the yaw inertia.
+const YAW_INERTIA: usize = 4;
 
 /// How an identification runs.
 #[derive(Debug, Clone, PartialEq)]
@@ -91,6 +102,18 @@ pub struct ParameterEstimate {
     pub identified: bool,
     /// Held at the starting profile's by construction (the force scale).
     pub held: bool,
+    /// What it keeps when the trial does not pin it down.
+    pub fallback: Fallback,
+}
+
+/// What a parameter the trial did not pin down keeps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fallback {
+    /// The starting profile's value.
+    StartingProfile,
+    /// The starting profile's value times the identified mass scale (the
+    /// yaw inertia: the starting profile's radius of gyration).
+    FollowsTheMass,
 }
 
 /// How well a profile predicts the held-out part of the trial.
@@ -108,9 +131,11 @@ pub struct Identification {
     /// The identified parameters (the starting ones where not identified).
     pub params: VesselParams,
     /// Each parameter.
-    pub estimates: [ParameterEstimate; 4],
+    pub estimates: [ParameterEstimate; 5],
     /// The relative standard deviations to give the twin of the identified
-    /// profile ([`KineticConfig::profile_sigma`]).
+    /// profile ([`KineticConfig::profile_sigma`]), in its order: its
+    /// mass-and-inertia error takes the larger of the mass's and the yaw
+    /// inertia's.
     pub profile_sigma: [f64; 4],
     /// Rounds run.
     pub rounds: usize,
@@ -133,7 +158,17 @@ const UNIDENTIFIED_SIGMA: f64 = 0.25;
 const MIN_IDENTIFIED_SIGMA: f64 = 0.05;
 
 /// The searched parameters' indices in [`IDENTIFIED_PARAMETERS`].
-const SEARCHED: [usize; 3] = [0, 1, 3];
+const SEARCHED: [usize; 4] = [0, 1, 3, 4];
+/// How many parameters are searched.
+const N_SEARCHED: usize = SEARCHED.len();
+
+/// `start` with the scales of [`IDENTIFIED_PARAMETERS`] applied, the yaw
+/// inertia's on top of the mass's (which scales the whole mass matrix).
+fn scaled_params(start: &VesselParams, scales: [f64; 5]) -> VesselParams {
+    start
+        .scaled([scales[0], scales[1], scales[2], scales[MASS]])
+        .with_yaw_inertia_scaled(scales[YAW_INERTIA])
+}
 
 /// The twin `params` describes, taken as exact, with the water's process
 /// noise alone.
@@ -218,77 +253,66 @@ const GRID: usize = 16;
 const CURVATURE_STEP: f64 = 0.02;
 
 /// The standard deviations of the log-scales from the likelihood's Hessian
-/// at `log_scales` (the square roots of its inverse's diagonal; infinite
-/// where the Hessian is not positive definite).
-fn marginal_sigma(nll: &dyn Fn([f64; 3]) -> f64, log_scales: [f64; 3]) -> [f64; 3] {
+/// over the `active` slots at `log_scales` (the square roots of its
+/// inverse's diagonal; infinite where the Hessian is not positive definite,
+/// zero for a slot held).
+fn marginal_sigma(
+    nll: &dyn Fn([f64; N_SEARCHED]) -> f64,
+    log_scales: [f64; N_SEARCHED],
+    active: &[usize],
+) -> [f64; N_SEARCHED] {
     let h = CURVATURE_STEP;
-    let at = |di: [f64; 3]| nll(std::array::from_fn(|k| log_scales[k] + di[k]));
-    let f0 = at([0.0; 3]);
-    let mut hessian = nalgebra::Matrix3::<f64>::zeros();
-    for i in 0..3 {
-        let mut e = [0.0; 3];
-        e[i] = h;
-        let plus = at(e);
-        e[i] = -h;
-        let minus = at(e);
-        hessian[(i, i)] = (plus - 2.0 * f0 + minus) / (h * h);
-        for j in 0..i {
-            let mut pp = [0.0; 3];
-            pp[i] = h;
-            pp[j] = h;
-            let mut mm = [0.0; 3];
-            mm[i] = -h;
-            mm[j] = -h;
-            let mut pm = [0.0; 3];
-            pm[i] = h;
-            pm[j] = -h;
-            let mut mp = [0.0; 3];
-            mp[i] = -h;
-            mp[j] = h;
-            let v = (at(pp) - at(pm) - at(mp) + at(mm)) / (4.0 * h * h);
+    let at = |pairs: &[(usize, f64)]| {
+        let mut x = log_scales;
+        for (slot, d) in pairs {
+            x[*slot] += d;
+        }
+        nll(x)
+    };
+    let f0 = at(&[]);
+    let n = active.len();
+    let mut hessian = nalgebra::DMatrix::<f64>::zeros(n, n);
+    for (i, &a) in active.iter().enumerate() {
+        hessian[(i, i)] = (at(&[(a, h)]) - 2.0 * f0 + at(&[(a, -h)])) / (h * h);
+        for (j, &b) in active.iter().enumerate().take(i) {
+            let v = (at(&[(a, h), (b, h)]) - at(&[(a, h), (b, -h)]) - at(&[(a, -h), (b, h)])
+                + at(&[(a, -h), (b, -h)]))
+                / (4.0 * h * h);
             hessian[(i, j)] = v;
             hessian[(j, i)] = v;
         }
     }
+    let mut sigma = [0.0; N_SEARCHED];
     match hessian.cholesky() {
         Some(c) => {
             let inverse = c.inverse();
-            std::array::from_fn(|k| inverse[(k, k)].max(0.0).sqrt())
+            for (i, &a) in active.iter().enumerate() {
+                sigma[a] = inverse[(i, i)].max(0.0).sqrt();
+            }
         }
-        None => [f64::INFINITY; 3],
+        None => {
+            for &a in active {
+                sigma[a] = f64::INFINITY;
+            }
+        }
     }
+    sigma
 }
 
-/// Identifies the profile of the vessel of `prep` (a trial of it healthy,
-/// with propeller speeds), starting from `start`. `None` when the trial has
-/// no propeller speeds or the twin cannot run on it.
-pub fn identify(
-    prep: &Prepared,
-    start: &VesselParams,
+/// The largest likelihood over the `active` slots, from `log_scales`, one
+/// slot at a time in rounds with a narrowing window; the optimum and the
+/// rounds run.
+fn search(
+    nll: &dyn Fn([f64; N_SEARCHED]) -> f64,
+    mut log_scales: [f64; N_SEARCHED],
+    active: &[usize],
     config: &IdentifyConfig,
-) -> Option<Identification> {
-    if !prep.has_propellers || prep.steps.len() < 10 {
-        return None;
-    }
-    let split = split_of(prep, &config.diagnose);
-    let params_of = |log_scales: [f64; 3]| {
-        let mut scales = [1.0; 4];
-        for (slot, k) in SEARCHED.iter().enumerate() {
-            scales[*k] = log_scales[slot].exp();
-        }
-        start.scaled(scales)
-    };
-    let nll =
-        |log_scales: [f64; 3]| training_nll(prep, &config.diagnose, params_of(log_scales), split);
-    if !nll([0.0; 3]).is_finite() {
-        return None;
-    }
-    let mut log_scales = [0.0; 3];
+) -> ([f64; N_SEARCHED], usize) {
     let mut rounds = 0;
     while rounds < config.max_rounds {
         rounds += 1;
         let mut largest_move: f64 = 0.0;
-        for slot in 0..3 {
+        for &slot in active {
             let along = |x: f64| {
                 let mut s = log_scales;
                 s[slot] = x;
@@ -308,34 +332,109 @@ pub fn identify(
             break;
         }
     }
-    let sigma_log = marginal_sigma(&nll, log_scales);
-    let mut scale = [1.0; 4];
-    let mut sigma = [0.0; 4];
+    (log_scales, rounds)
+}
+
+/// The searched slots without the yaw inertia's own factor.
+const WITH_INERTIA_FOLLOWING_THE_MASS: [usize; 3] = [0, 1, 2];
+/// Every searched slot.
+const ALL_SEARCHED: [usize; 4] = [0, 1, 2, 3];
+
+/// Identifies the profile of the vessel of `prep` (a trial of it healthy,
+/// with propeller speeds), starting from `start`. `None` when the trial has
+/// no propeller speeds or the twin cannot run on it.
+///
+/// First with the yaw inertia following the mass (the starting profile's
+/// radius of gyration), then with its own factor free from there; that
+/// factor is kept only where the trial pins it down, and else the first
+/// fit is the answer, with its own uncertainties.
+pub fn identify(
+    prep: &Prepared,
+    start: &VesselParams,
+    config: &IdentifyConfig,
+) -> Option<Identification> {
+    if !prep.has_propellers || prep.steps.len() < 10 {
+        return None;
+    }
+    let split = split_of(prep, &config.diagnose);
+    let params_of = |log_scales: [f64; N_SEARCHED]| {
+        let mut scales = [1.0; 5];
+        for (slot, k) in SEARCHED.iter().enumerate() {
+            scales[*k] = log_scales[slot].exp();
+        }
+        scaled_params(start, scales)
+    };
+    let nll = |log_scales: [f64; N_SEARCHED]| {
+        training_nll(prep, &config.diagnose, params_of(log_scales), split)
+    };
+    if !nll([0.0; N_SEARCHED]).is_finite() {
+        return None;
+    }
+    let (tied, tied_rounds) = search(
+        &nll,
+        [0.0; N_SEARCHED],
+        &WITH_INERTIA_FOLLOWING_THE_MASS,
+        config,
+    );
+    let (free, free_rounds) = search(&nll, tied, &ALL_SEARCHED, config);
+    let free_sigma = marginal_sigma(&nll, free, &ALL_SEARCHED);
+    let inertia_slot = N_SEARCHED - 1;
+    let (log_scales, sigma_log) = if free_sigma[inertia_slot] <= config.identifiable_sigma {
+        (free, free_sigma)
+    } else {
+        let mut sigma = marginal_sigma(&nll, tied, &WITH_INERTIA_FOLLOWING_THE_MASS);
+        sigma[inertia_slot] = free_sigma[inertia_slot];
+        // Reported (not used): the free fit's own factor.
+        let mut reported = tied;
+        reported[inertia_slot] = free[inertia_slot];
+        (reported, sigma)
+    };
+    let rounds = tied_rounds + free_rounds;
+    let mut scale = [1.0; 5];
+    let mut sigma = [0.0; 5];
     for (slot, k) in SEARCHED.iter().enumerate() {
         scale[*k] = log_scales[slot].exp();
         sigma[*k] = sigma_log[slot];
     }
-    let estimates: [ParameterEstimate; 4] = std::array::from_fn(|k| ParameterEstimate {
+    let estimates: [ParameterEstimate; 5] = std::array::from_fn(|k| ParameterEstimate {
         name: IDENTIFIED_PARAMETERS[k],
-        scale: scale[k],
+        // The yaw inertia's over the starting profile's, the mass's with it.
+        scale: if k == YAW_INERTIA {
+            scale[MASS] * scale[YAW_INERTIA]
+        } else {
+            scale[k]
+        },
         sigma: sigma[k],
         identified: k != THRUST && sigma[k] <= config.identifiable_sigma,
         held: k == THRUST,
+        fallback: if k == YAW_INERTIA {
+            Fallback::FollowsTheMass
+        } else {
+            Fallback::StartingProfile
+        },
     });
-    // What the trial did not pin down keeps its starting value.
-    let kept: [f64; 4] = std::array::from_fn(|k| {
+    // What the trial did not pin down keeps its starting value (the yaw
+    // inertia's own factor 1: it follows the mass).
+    let kept: [f64; 5] = std::array::from_fn(|k| {
         if estimates[k].identified {
             scale[k]
         } else {
             1.0
         }
     });
-    let params = start.scaled(kept);
-    let profile_sigma = std::array::from_fn(|k| match estimates[k] {
+    let params = scaled_params(start, kept);
+    let given = |e: &ParameterEstimate| match e {
         e if e.held => MIN_IDENTIFIED_SIGMA,
         e if e.identified => e.sigma.max(MIN_IDENTIFIED_SIGMA),
         _ => UNIDENTIFIED_SIGMA,
-    });
+    };
+    // The twin's mass-and-inertia error stands for both: the larger.
+    let profile_sigma = [
+        given(&estimates[0]),
+        given(&estimates[1]),
+        given(&estimates[2]),
+        given(&estimates[3]).max(given(&estimates[4])),
+    ];
     Some(Identification {
         params,
         estimates,

@@ -75,7 +75,8 @@ pub use fit::{
     diagnose,
 };
 pub use identify::{
-    HeldOut, IDENTIFIED_PARAMETERS, Identification, IdentifyConfig, ParameterEstimate, identify,
+    Fallback, HeldOut, IDENTIFIED_PARAMETERS, Identification, IdentifyConfig, ParameterEstimate,
+    identify,
 };
 pub use monitor::{BIAS_BATCHES, LiveMonitor, MonitorConfig, Trigger};
 pub use prepare::{DiagEvent, Prepared, prepare};
