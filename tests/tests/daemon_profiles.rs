@@ -205,6 +205,7 @@ async fn a_profile_identified_from_a_healthy_trial_finds_a_later_port_loss_in_th
             "{vessel}: starboard loss {stb_loss} (truth 0)"
         );
         assert_eq!(port.status, ThrusterStatusName::Fault, "{vessel}");
+        assert_eq!(last.profile_mismatch, None, "{vessel}");
         let stb_faults = faults
             .iter()
             .filter(|f| f.thrusters.starboard.status == ThrusterStatusName::Fault)
@@ -214,6 +215,27 @@ async fn a_profile_identified_from_a_healthy_trial_finds_a_later_port_loss_in_th
             "{vessel}: the healthy starboard propeller declared FAULT"
         );
     }
+    // The same log on the Otter's profile (no rule names `otter-1`): the
+    // twin withholds the comparison, says why on `twin/fault`, and never
+    // declares the healthy propeller FAULT.
+    let faults = replayed_faults(&rig, &other_loss, "otter-1").await;
+    let last = faults.last().expect("faults published");
+    let mismatch = last
+        .profile_mismatch
+        .expect("twin/fault says the profile does not describe the vessel");
+    assert!(
+        mismatch.yaw_damping_error.abs() > mismatch.yaw_damping_bound
+            || mismatch.mass_error.abs() > mismatch.mass_bound
+            || mismatch.nis_per_dof > mismatch.max_nis_per_dof,
+        "{mismatch:?}"
+    );
+    assert!(!last.excited);
+    assert!(
+        faults
+            .iter()
+            .all(|f| f.thrusters.starboard.status != ThrusterStatusName::Fault),
+        "otter-1: the healthy starboard propeller declared FAULT"
+    );
     rig.stop().await;
     let _ = std::fs::remove_dir_all(&dir);
 }

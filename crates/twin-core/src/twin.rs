@@ -273,6 +273,10 @@ pub struct FaultReport {
     /// `[(value, sigma); 4]` (a hull 30 % draggier than its profile: surge
     /// 0.3); `None` for the seed's method.
     pub profile_errors: Option<[(f64, f64); 4]>,
+    /// Where the comparison of the propellers is withheld because the
+    /// profile does not describe the vessel, what shows it
+    /// ([`VesselTwin::profile_mismatch`]); `None` otherwise.
+    pub profile_mismatch: Option<ProfileMismatch>,
 }
 
 impl FaultReport {
@@ -1156,6 +1160,7 @@ impl VesselTwin {
             .state
             .map(|s| s.theta)
             .unwrap_or_else(SVector::zeros);
+        let mismatch = self.profile_mismatch();
         let (source, thrusters, loss_covariance, profile_errors) = match &self.kinetic.state {
             Some(k) => {
                 // With the current estimated, a loss both propellers share
@@ -1167,11 +1172,8 @@ impl VesselTwin {
                 // the losses are one ([`KineticConfig::min_yaw_rate_spread`]).
                 // Nor where the profile no longer describes the vessel
                 // ([`KineticConfig::plausible_profile_sigmas`]).
-                let yaw_balance_told = self.kinetic.yaw_balance_told(&self.config.kinetic)
-                    && self
-                        .kinetic
-                        .profile_mismatch(k, &self.config.kinetic)
-                        .is_none();
+                let yaw_balance_told =
+                    self.kinetic.yaw_balance_told(&self.config.kinetic) && mismatch.is_none();
                 let r = self
                     .kinetic
                     .base
@@ -1226,6 +1228,7 @@ impl VesselTwin {
             seed_input_faults: seed_theta,
             loss_covariance,
             profile_errors,
+            profile_mismatch: mismatch,
         }
     }
 

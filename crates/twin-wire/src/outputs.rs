@@ -10,7 +10,9 @@ use std::collections::BTreeMap;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use twin_core::decision::{StatusChange, ThrusterStatus};
-use twin_core::twin::{FaultReport, FaultSource, ForecastPoint, StateReport, ThrusterEstimate};
+use twin_core::twin::{
+    FaultReport, FaultSource, ForecastPoint, ProfileMismatch, StateReport, ThrusterEstimate,
+};
 
 use crate::time::format_rfc3339;
 
@@ -229,6 +231,44 @@ pub struct FaultMessage {
     pub seed_input_faults: [f64; 2],
     /// True when the inputs were replayed from a log.
     pub replay: bool,
+    /// Why the propellers' losses are not excited although the data move:
+    /// the profile does not describe this vessel (`null` where it does, or
+    /// for the seed's method). A controller reads it as "the twin knows it
+    /// cannot tell": calibrate or identify the vessel's profile.
+    #[serde(default)]
+    pub profile_mismatch: Option<ProfileMismatchMessage>,
+}
+
+/// The figures that show a profile does not describe the vessel: how far
+/// the filter moved the profile's yaw damping and mass, and how well the
+/// model fits, each with its bound (docs/model.md section 10).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct ProfileMismatchMessage {
+    /// The relative error of the profile's yaw damping the filter reached.
+    pub yaw_damping_error: f64,
+    /// The largest it may be (three of its prior standard deviations).
+    pub yaw_damping_bound: f64,
+    /// The relative error of the profile's mass the filter reached.
+    pub mass_error: f64,
+    /// The largest it may be.
+    pub mass_bound: f64,
+    /// The NIS per degree of freedom over the filter's memory.
+    pub nis_per_dof: f64,
+    /// The largest it may be.
+    pub max_nis_per_dof: f64,
+}
+
+impl From<&ProfileMismatch> for ProfileMismatchMessage {
+    fn from(m: &ProfileMismatch) -> Self {
+        Self {
+            yaw_damping_error: m.yaw_damping_error,
+            yaw_damping_bound: m.yaw_damping_bound,
+            mass_error: m.mass_error,
+            mass_bound: m.mass_bound,
+            nis_per_dof: m.nis_per_dof,
+            max_nis_per_dof: m.max_nis_per_dof,
+        }
+    }
 }
 
 fn thruster(t: &ThrusterEstimate) -> ThrusterMessage {
@@ -269,6 +309,7 @@ impl FaultMessage {
             effectiveness_ratio: ratio.filter(|r| r.value.is_finite() && r.sigma.is_finite()),
             seed_input_faults: [f.seed_input_faults[0], f.seed_input_faults[1]],
             replay,
+            profile_mismatch: f.profile_mismatch.as_ref().map(Into::into),
         }
     }
 }

@@ -771,6 +771,7 @@ mod tests {
             effectiveness_ratio: None,
             seed_input_faults: [0.0, 0.0],
             replay: true,
+            profile_mismatch: None,
         };
         OutputEvent {
             vessel: vessel.into(),

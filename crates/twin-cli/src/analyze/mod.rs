@@ -94,6 +94,7 @@ use twin_core::twin::{
 };
 use twin_wire::assemble::{Assembled, AssemblerConfig, FixAssembler, SourceChoice};
 use twin_wire::measurement::{Source, Talker};
+use twin_wire::outputs::ProfileMismatchMessage;
 use twin_wire::profile::VesselProfile;
 use twin_wire::read::{LogFormat, LogReader, OpenError, ReadOptions};
 use twin_wire::time::format_rfc3339;
@@ -904,14 +905,8 @@ impl Analyzer<'_> {
                 .twin
                 .profile_mismatch()
                 .filter(|_| observable)
-                .map(|m| ProfileMismatchResult {
-                    yaw_damping_error: m.yaw_damping_error,
-                    yaw_damping_bound: m.yaw_damping_bound,
-                    mass_error: m.mass_error,
-                    mass_bound: m.mass_bound,
-                    nis_per_dof: m.nis_per_dof,
-                    max_nis_per_dof: m.max_nis_per_dof,
-                }),
+                .as_ref()
+                .map(ProfileMismatchMessage::from),
             note: if observable {
                 KINETIC_NOTE
             } else {

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 use twin_wire::assemble::AssembleStats;
-use twin_wire::outputs::ThrusterStatusName;
+use twin_wire::outputs::{ProfileMismatchMessage, ThrusterStatusName};
 use twin_wire::read::ReadStats;
 
 use crate::quality::Quality;
@@ -150,25 +150,6 @@ pub struct Ratio {
     pub sigma: f64,
 }
 
-/// Why the comparison of the propellers is withheld: the profile does not
-/// describe the vessel (`twin_core::twin::ProfileMismatch`, docs/model.md
-/// section 10).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct ProfileMismatchResult {
-    /// The relative error of the profile's yaw damping the filter reached.
-    pub yaw_damping_error: f64,
-    /// The largest it may be (three of its prior standard deviations).
-    pub yaw_damping_bound: f64,
-    /// The relative error of the profile's mass the filter reached.
-    pub mass_error: f64,
-    /// The largest it may be.
-    pub mass_bound: f64,
-    /// The NIS per degree of freedom over the filter's memory.
-    pub nis_per_dof: f64,
-    /// The largest it may be.
-    pub max_nis_per_dof: f64,
-}
-
 /// Both thrusters.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ThrustersResult {
@@ -185,7 +166,7 @@ pub struct ThrustersResult {
     /// At the end of the log, why the comparison of the propellers is
     /// withheld, where the profile does not describe the vessel (`null`
     /// where it does).
-    pub profile_mismatch: Option<ProfileMismatchResult>,
+    pub profile_mismatch: Option<ProfileMismatchMessage>,
     /// What the figures are.
     pub note: &'static str,
     /// Port.
