@@ -118,7 +118,7 @@ export class Gauges {
       const r = f.effectiveness_ratio;
       text(
         this.note,
-        `extended twin · ${f.excited ? 'excited' : 'not excited'}${r ? ` · effectiveness ratio ${r.value.toFixed(3)} ± ${r.sigma.toFixed(3)}` : ''}${f.onset ? ` · onset ${f.onset.slice(11, 19)}` : ''}`,
+        `extended twin · ${f.excited ? 'excited' : 'not excited'}${r ? ` · effectiveness ratio ${r.value.toFixed(3)} ± ${r.sigma.toFixed(3)}` : ''}${f.onset ? ` · onset ${f.onset.slice(11, 19)}` : ''}${f.profile_mismatch ? ' · comparison withheld: the profile does not describe this vessel' : ''}`,
       );
     }
   }
