@@ -169,7 +169,7 @@ fn the_validator_refuses_payloads_that_break_the_contract() {
         },
         "status": "suspect", "excited": true, "onset": null, "model": "kinetic",
         "effectiveness_ratio": {"value": 0.8, "sigma": 0.02},
-        "seed_input_faults": [0.0, 0.0], "replay": true
+        "seed_input_faults": [0.0, 0.0], "replay": true, "profile_mismatch": null
     });
     let broken: Vec<serde_json::Value> = vec![
         {
@@ -202,9 +202,18 @@ fn the_validator_refuses_payloads_that_break_the_contract() {
     let dir = repo().join("target/payload-schemas/broken");
     let _ = std::fs::remove_dir_all(&dir);
     let mut payloads = BTreeMap::new();
+    // And one whose profile does not describe the vessel, saying why.
+    let mut withheld = fault.clone();
+    withheld["profile_mismatch"] = serde_json::json!({
+        "yaw_damping_error": 1.24, "yaw_damping_bound": 0.75, "mass_error": 0.06,
+        "mass_bound": 0.75, "nis_per_dof": 0.66, "max_nis_per_dof": 2.0
+    });
     payloads.insert(
         "fault".to_string(),
-        vec![serde_json::to_vec(&fault).unwrap()],
+        vec![
+            serde_json::to_vec(&fault).unwrap(),
+            serde_json::to_vec(&withheld).unwrap(),
+        ],
     );
     write_payloads(&dir.join("good"), &payloads);
     let (report, valid) = validate(&dir.join("good"));
