@@ -15,6 +15,7 @@ const DOCS: &[&str] = &[
     "docs/performance.md",
     "docs/known-issues.md",
     "docs/contracts.md",
+    "docs/identification.md",
     "docs/deploy.md",
     "docs/model.md",
     "web/README.md",
