@@ -314,6 +314,8 @@ async fn a_ros2_subscriber_gets_the_json_fault_as_diagnostics() {
         number(value(both, "effectiveness_ratio")),
         Some(ratio.value)
     );
+    // The Otter on the Otter's profile: nothing withheld.
+    assert_eq!(value(both, "profile_mismatch"), "");
     // The trial's port propeller lost 30 %: the twin says so in both.
     assert_eq!(value(port, "status"), "fault");
     assert_eq!(port.level, 2);

@@ -302,6 +302,23 @@ pub fn fault_diagnostics(fault: &FaultMessage) -> DiagnosticArray {
             kv("onset", fault.onset.clone().unwrap_or_default()),
             kv("model", model.to_string()),
             kv("replay", fault.replay.to_string()),
+            kv(
+                "profile_mismatch",
+                fault
+                    .profile_mismatch
+                    .map(|m| {
+                        format!(
+                            "yaw_damping_error {:.2} (at most {:.2}); mass_error {:.2} (at most {:.2}); nis_per_dof {:.2} (at most {:.2})",
+                            m.yaw_damping_error,
+                            m.yaw_damping_bound,
+                            m.mass_error,
+                            m.mass_bound,
+                            m.nis_per_dof,
+                            m.max_nis_per_dof
+                        )
+                    })
+                    .unwrap_or_default(),
+            ),
         ],
     };
     DiagnosticArray {
@@ -376,6 +393,58 @@ mod tests {
             let back = heading_of_enu_yaw(yaw_of(&yaw_quaternion(enu_yaw(h))));
             assert!((back - h).abs() < 1e-12, "{h} -> {back}");
         }
+    }
+
+    /// The vessels' status says why the comparison of the propellers is
+    /// withheld, and says nothing while the profile describes the vessel.
+    #[test]
+    fn the_thrusters_status_carries_the_profile_mismatch() {
+        let thruster = crate::outputs::ThrusterMessage {
+            loss: Some(0.2),
+            sigma: Some(0.35),
+            loss_raw: Some(0.2),
+            excited: false,
+            status: ThrusterStatusName::NotExcited,
+            onset: None,
+        };
+        let mut fault = FaultMessage {
+            vessel: "v".into(),
+            time: "2026-01-01T00:00:00Z".into(),
+            thrusters: crate::outputs::Thrusters {
+                port: thruster.clone(),
+                starboard: thruster,
+            },
+            status: ThrusterStatusName::NotExcited,
+            excited: false,
+            onset: None,
+            model: crate::outputs::ModelName::Kinetic,
+            effectiveness_ratio: None,
+            seed_input_faults: [0.0, 0.0],
+            replay: false,
+            profile_mismatch: None,
+        };
+        let mismatch_of = |f: &FaultMessage| {
+            let d = fault_diagnostics(f);
+            let both = d.status.last().unwrap();
+            both.values
+                .iter()
+                .find(|v| v.key == "profile_mismatch")
+                .map(|v| v.value.clone())
+                .unwrap()
+        };
+        assert_eq!(mismatch_of(&fault), "");
+        fault.profile_mismatch = Some(crate::outputs::ProfileMismatchMessage {
+            yaw_damping_error: 1.24,
+            yaw_damping_bound: 0.75,
+            mass_error: 0.06,
+            mass_bound: 0.75,
+            nis_per_dof: 0.66,
+            max_nis_per_dof: 2.0,
+        });
+        assert_eq!(
+            mismatch_of(&fault),
+            "yaw_damping_error 1.24 (at most 0.75); mass_error 0.06 (at most 0.75); nis_per_dof 0.66 (at most 2.00)"
+        );
     }
 
     #[test]
