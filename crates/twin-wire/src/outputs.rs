@@ -258,6 +258,23 @@ pub struct ProfileMismatchMessage {
     pub max_nis_per_dof: f64,
 }
 
+/// One line for people: each figure with its bound (`twin analyze`'s text,
+/// the ROS 2 diagnostics).
+impl std::fmt::Display for ProfileMismatchMessage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "yaw damping error {:+.2}, at most +-{:.2}; mass error {:+.2}, at most +-{:.2}; NIS per dof over the last minute {:.2}, at most {:.1}",
+            self.yaw_damping_error,
+            self.yaw_damping_bound,
+            self.mass_error,
+            self.mass_bound,
+            self.nis_per_dof,
+            self.max_nis_per_dof
+        )
+    }
+}
+
 impl From<&ProfileMismatch> for ProfileMismatchMessage {
     fn from(m: &ProfileMismatch) -> Self {
         Self {

@@ -231,13 +231,7 @@ impl Analysis {
             if let Some(m) = t.profile_mismatch {
                 let _ = writeln!(
                     w,
-                    "    comparison withheld: the profile does not describe this vessel (yaw damping error {:+.2}, at most +-{:.2}; mass error {:+.2}, at most +-{:.2}; NIS per dof over the last minute {:.2}, at most {:.1})",
-                    m.yaw_damping_error,
-                    m.yaw_damping_bound,
-                    m.mass_error,
-                    m.mass_bound,
-                    m.nis_per_dof,
-                    m.max_nis_per_dof
+                    "    comparison withheld: the profile does not describe this vessel ({m})"
                 );
             }
             for al in &self.alarms {

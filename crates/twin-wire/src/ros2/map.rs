@@ -306,17 +306,7 @@ pub fn fault_diagnostics(fault: &FaultMessage) -> DiagnosticArray {
                 "profile_mismatch",
                 fault
                     .profile_mismatch
-                    .map(|m| {
-                        format!(
-                            "yaw_damping_error {:.2} (at most {:.2}); mass_error {:.2} (at most {:.2}); nis_per_dof {:.2} (at most {:.2})",
-                            m.yaw_damping_error,
-                            m.yaw_damping_bound,
-                            m.mass_error,
-                            m.mass_bound,
-                            m.nis_per_dof,
-                            m.max_nis_per_dof
-                        )
-                    })
+                    .map(|m| m.to_string())
                     .unwrap_or_default(),
             ),
         ],
@@ -443,7 +433,7 @@ mod tests {
         });
         assert_eq!(
             mismatch_of(&fault),
-            "yaw_damping_error 1.24 (at most 0.75); mass_error 0.06 (at most 0.75); nis_per_dof 0.66 (at most 2.00)"
+            "yaw damping error +1.24, at most +-0.75; mass error +0.06, at most +-0.75; NIS per dof over the last minute 0.66, at most 2.0"
         );
     }
 
