@@ -1,6 +1,7 @@
 //! The trust matrix as a command: runs draws on both simulators and prints
-//! the tables of `twin_tests::trust` (the CI test runs a smaller matrix with
-//! the same bars).
+//! the tables of `twin_tests::trust` (the CI test, `tests/trust_matrix.rs`,
+//! runs the default matrix with the same bars; other seeds and sizes are
+//! this command's).
 //!
 //! ```text
 //! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--threads T] [--failures] [--trace I] [--list]
@@ -10,12 +11,14 @@
 //! `--list` lists the draws.
 
 use twin_core::twin::TwinConfig;
-use twin_tests::trust::{Simulator, draws, run_matrix};
+use twin_tests::trust::{
+    Draw, MATRIX_OTHER_DRAWS, MATRIX_OWN_DRAWS, MATRIX_SEED, matrix_draws, run_matrix,
+};
 
 fn main() -> Result<(), String> {
-    let mut own = 52;
-    let mut other = 26;
-    let mut seed = 20_261_125u64;
+    let mut own = MATRIX_OWN_DRAWS;
+    let mut other = MATRIX_OTHER_DRAWS;
+    let mut seed = MATRIX_SEED;
     let mut threads = 2;
     let mut failures = false;
     let mut trace: Option<usize> = None;
@@ -38,12 +41,7 @@ fn main() -> Result<(), String> {
             _ => return Err(format!("unknown argument {a}")),
         }
     }
-    let mut all = draws(Simulator::Own, own, seed);
-    let mut others = draws(Simulator::Other, other, seed ^ 0x0A11_0C8E);
-    for d in &mut others {
-        d.index += own;
-    }
-    all.extend(others);
+    let all = matrix_draws(own, other, seed);
     if list {
         for d in &all {
             println!("{}", d.describe());
@@ -55,46 +53,7 @@ fn main() -> Result<(), String> {
             .iter()
             .find(|d| d.index == i)
             .ok_or(format!("no draw {i}"))?;
-        println!("{}", draw.describe());
-        let trial = twin_tests::trust::simulate(draw)?;
-        let record = twin_tests::trust::run(&trial, TwinConfig::default());
-        let mut next = 0.0;
-        for s in &record.samples {
-            if s.elapsed_s < next {
-                continue;
-            }
-            next = s.elapsed_s.floor() + 10.0;
-            let r = &s.report;
-            let side = |k: usize| {
-                let t = r.thrusters[k];
-                format!(
-                    "{:+.3}±{:.3}{} rel {:+.3}±{:.3}{} {}",
-                    t.loss,
-                    t.sigma,
-                    if t.excited { "*" } else { " " },
-                    t.relative_loss,
-                    t.relative_sigma,
-                    if t.relative_excited { "*" } else { " " },
-                    t.decision.status.name()
-                )
-            };
-            let damping = r
-                .profile_errors
-                .map(|d| {
-                    format!(
-                        "du {:+.2}±{:.2} dr {:+.2}±{:.2} dk {:+.2}±{:.2} dm {:+.2}±{:.2}",
-                        d[0].0, d[0].1, d[1].0, d[1].1, d[2].0, d[2].1, d[3].0, d[3].1
-                    )
-                })
-                .unwrap_or_default();
-            println!(
-                "{:6.1} s  port {}  stb {}  {damping}",
-                s.elapsed_s,
-                side(0),
-                side(1)
-            );
-        }
-        return Ok(());
+        return print_trace(draw);
     }
     let matrix = run_matrix(&all, TwinConfig::default(), threads)?;
     println!(
@@ -107,6 +66,64 @@ fn main() -> Result<(), String> {
         for f in matrix.failures() {
             println!("- {f}");
         }
+    }
+    Ok(())
+}
+
+/// Prints what the twin published over `draw`, every 10 s.
+fn print_trace(draw: &Draw) -> Result<(), String> {
+    println!("{}", draw.describe());
+    let trial = twin_tests::trust::simulate(draw)?;
+    let record = twin_tests::trust::run(&trial, TwinConfig::default());
+    let mut next = 0.0;
+    for s in &record.samples {
+        if s.elapsed_s < next {
+            continue;
+        }
+        next = s.elapsed_s.floor() + 10.0;
+        let r = &s.report;
+        let side = |k: usize| {
+            let t = r.thrusters[k];
+            format!(
+                "{:+.3}±{:.3}{} rel {:+.3}±{:.3}{} {}",
+                t.loss,
+                t.sigma,
+                if t.excited { "*" } else { " " },
+                t.relative_loss,
+                t.relative_sigma,
+                if t.relative_excited { "*" } else { " " },
+                t.decision.status.name()
+            )
+        };
+        let damping = r
+            .profile_errors
+            .map(|d| {
+                format!(
+                    "du {:+.2}±{:.2} dr {:+.2}±{:.2} dk {:+.2}±{:.2} dm {:+.2}±{:.2}",
+                    d[0].0, d[0].1, d[1].0, d[1].1, d[2].0, d[2].1, d[3].0, d[3].1
+                )
+            })
+            .unwrap_or_default();
+        let mismatch = r
+            .profile_mismatch
+            .map(|m| {
+                format!(
+                    "  mismatch: yaw damping {:+.2} (bound {:.2}), mass {:+.2} (bound {:.2}), NIS/dof {:.2} (bound {:.2})",
+                    m.yaw_damping_error,
+                    m.yaw_damping_bound,
+                    m.mass_error,
+                    m.mass_bound,
+                    m.nis_per_dof,
+                    m.max_nis_per_dof
+                )
+            })
+            .unwrap_or_default();
+        println!(
+            "{:6.1} s  port {}  stb {}  {damping}{mismatch}",
+            s.elapsed_s,
+            side(0),
+            side(1)
+        );
     }
     Ok(())
 }

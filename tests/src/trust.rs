@@ -346,6 +346,25 @@ impl Draw {
     }
 }
 
+/// The matrix's seed, as the docs' tables and the CI test run it.
+pub const MATRIX_SEED: u64 = 20_261_125;
+/// Its draws on `twin-sim`: four per class.
+pub const MATRIX_OWN_DRAWS: usize = 4 * Class::ALL.len();
+/// Its draws on the independent simulator: two per class.
+pub const MATRIX_OTHER_DRAWS: usize = 2 * Class::ALL.len();
+
+/// The matrix's draws: `own` on `twin-sim`, then `other` on the
+/// independent simulator (numbered after them), from `seed`.
+pub fn matrix_draws(own: usize, other: usize, seed: u64) -> Vec<Draw> {
+    let mut all = draws(Simulator::Own, own, seed);
+    let mut others = draws(Simulator::Other, other, seed ^ 0x0A11_0C8E);
+    for d in &mut others {
+        d.index += own;
+    }
+    all.extend(others);
+    all
+}
+
 /// `count` draws on `simulator` from `seed`: the classes in blocks of
 /// [`Class::ALL`], each block in a random order; one draw in six a control.
 pub fn draws(simulator: Simulator, count: usize, seed: u64) -> Vec<Draw> {

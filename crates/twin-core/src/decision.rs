@@ -9,7 +9,11 @@
 //! rules to its value and standard deviation (thresholds in
 //! [`DecisionConfig`], `k` = `confidence_sigmas`):
 //! - evidence of a fault: `loss >= fault_loss` and `loss - k sigma >= suspect_loss`;
-//! - evidence of a suspect: `loss >= suspect_loss` and `loss - k sigma > 0`;
+//! - evidence of a suspect: `loss >= suspect_loss` and `loss - k sigma >=
+//!   clear_loss` (the loss confidently outside the nominal band); for a
+//!   thruster already at fault, also `loss + k sigma < fault_loss` (the
+//!   loss confidently below the fault level: a fault's estimate wandering
+//!   near its threshold is not a recovery);
 //! - evidence of nominal: `loss < clear_loss` or `loss + k sigma < suspect_loss`;
 //! - anything else (between the clear and suspect levels, or too uncertain)
 //!   is no evidence.
@@ -20,15 +24,24 @@
 //! is the level hysteresis). A loss whose σ is wide (its common part
 //! unknown) shows nothing on its own, so a hull draggier than its profile
 //! raises no fault, while one propeller weaker than the other does;
-//! - a new level must persist `confirm_s` (going up) or `clear_s` (going
-//!   down) before the status changes: the time hysteresis. Evidence that
-//!   moves further the same way (suspect, then fault) keeps the clock, and
-//!   the status goes straight to the level the evidence shows then;
+//! - a new level must persist `confirm_s` (up to a fault),
+//!   `suspect_confirm_s` (up to a suspect) or `clear_s` (going down) before
+//!   the status changes: the time hysteresis. Evidence that moves further
+//!   the same way (suspect, then fault) keeps the clock, and the status goes
+//!   straight to the level the evidence shows then. A suspect waits longer
+//!   than a fault: an estimate converging on a real loss passes through the
+//!   suspect band on its way, and one change (nominal to fault) says it
+//!   better than two; nothing acts on a suspect, so waiting costs little;
 //! - while a thruster is not excited its status holds (a broken propeller
 //!   stays broken on a straight line); a thruster never excited is
 //!   `NotExcited`;
-//! - the onset is the time the evidence of the current episode first
-//!   appeared, not the time it was confirmed.
+//! - the onset is the last time before the episode's first evidence that
+//!   the propeller looked healthy (its loss, and its loss relative to the
+//!   other, below `clear_loss`, whether or not the data excited them): an
+//!   estimate moves towards a new loss from the moment it starts, and its
+//!   evidence clears the bars only later. Without such a time (a loss from
+//!   the start), the episode's first evidence. Never the time it was
+//!   confirmed.
 //!
 //! Time is the message time, passed in; nothing here reads a clock.
 
@@ -70,16 +83,19 @@ pub struct DecisionConfig {
     pub clear_loss: f64,
     /// How many standard deviations the evidence must clear.
     pub confidence_sigmas: f64,
-    /// How long a higher level must persist before it is declared, s.
+    /// How long evidence of a fault must persist before it is declared, s.
     pub confirm_s: f64,
+    /// How long evidence of a suspect must persist before it is declared, s.
+    pub suspect_confirm_s: f64,
     /// How long a lower level must persist before it is declared, s.
     pub clear_s: f64,
 }
 
 impl Default for DecisionConfig {
     /// Suspect at 5 %, fault at 10 %, clear below 3 %, two sigmas, 3 s to
-    /// confirm and 10 s to clear. The seed's healthy propellers showed 0-4 %
-    /// input faults, its broken one 12-18 %.
+    /// confirm a fault, 15 s to confirm a suspect and 10 s to clear. The
+    /// seed's healthy propellers showed 0-4 % input faults, its broken one
+    /// 12-18 %.
     fn default() -> Self {
         Self {
             suspect_loss: 0.05,
@@ -87,6 +103,7 @@ impl Default for DecisionConfig {
             clear_loss: 0.03,
             confidence_sigmas: 2.0,
             confirm_s: 3.0,
+            suspect_confirm_s: 15.0,
             clear_s: 10.0,
         }
     }
@@ -141,6 +158,8 @@ struct SideState {
     status: ThrusterStatus,
     onset_time_s: Option<f64>,
     candidate: Option<(ThrusterStatus, f64)>,
+    /// The last time the propeller looked healthy (module doc).
+    looked_healthy_s: Option<f64>,
 }
 
 /// The decision state for two thrusters. Plain data, so it can be saved.
@@ -157,6 +176,7 @@ impl FaultDecider {
             status: ThrusterStatus::NotExcited,
             onset_time_s: None,
             candidate: None,
+            looked_healthy_s: None,
         };
         Self {
             config,
@@ -184,6 +204,7 @@ impl FaultDecider {
             status: decision.status,
             onset_time_s: decision.onset_time_s,
             candidate: None,
+            looked_healthy_s: None,
         };
     }
 
@@ -199,11 +220,19 @@ impl FaultDecider {
         for side in Side::BOTH {
             let i = side.index();
             let e = evidence[i];
+            let clear = self.config.clear_loss;
+            let readings = [e.loss, e.relative_loss];
+            if readings.iter().any(|l| l.is_finite())
+                && readings.iter().all(|l| !l.is_finite() || *l < clear)
+            {
+                self.sides[i].looked_healthy_s = Some(time_s);
+            }
+            let at_fault = self.sides[i].status == ThrusterStatus::Fault;
             let absolute = (e.excited && e.loss.is_finite() && e.sigma.is_finite())
-                .then(|| self.evidence(e.loss, e.sigma));
+                .then(|| self.evidence(e.loss, e.sigma, at_fault));
             let relative =
                 (e.relative_excited && e.relative_loss.is_finite() && e.relative_sigma.is_finite())
-                    .then(|| self.evidence(e.relative_loss, e.relative_sigma));
+                    .then(|| self.evidence(e.relative_loss, e.relative_sigma, at_fault));
             if absolute.is_none() && relative.is_none() {
                 continue;
             }
@@ -243,19 +272,21 @@ impl FaultDecider {
                     time_s
                 }
             };
-            let needed = if level > st.status {
+            let needed = if level == ThrusterStatus::Fault {
                 cfg.confirm_s
+            } else if level > st.status {
+                cfg.suspect_confirm_s
             } else {
                 cfg.clear_s
             };
             if time_s - since >= needed {
                 let from = st.status;
                 let onset = if level > ThrusterStatus::Nominal {
-                    // An episode's onset stays from its first evidence.
+                    // An episode's onset stays from its start.
                     if from > ThrusterStatus::Nominal {
                         st.onset_time_s.unwrap_or(since)
                     } else {
-                        since
+                        st.looked_healthy_s.filter(|t| *t <= since).unwrap_or(since)
                     }
                 } else {
                     since
@@ -277,13 +308,17 @@ impl FaultDecider {
         changes
     }
 
-    /// What one judgement shows (module doc).
-    fn evidence(&self, loss: f64, sigma: f64) -> Option<ThrusterStatus> {
+    /// What one judgement shows (module doc); `at_fault`: whether the
+    /// thruster is at fault now.
+    fn evidence(&self, loss: f64, sigma: f64, at_fault: bool) -> Option<ThrusterStatus> {
         let c = &self.config;
         let k = c.confidence_sigmas;
         if loss >= c.fault_loss && loss - k * sigma >= c.suspect_loss {
             Some(ThrusterStatus::Fault)
-        } else if loss >= c.suspect_loss && loss - k * sigma > 0.0 {
+        } else if loss >= c.suspect_loss
+            && loss - k * sigma >= c.clear_loss
+            && (!at_fault || loss + k * sigma < c.fault_loss)
+        {
             Some(ThrusterStatus::Suspect)
         } else if loss < c.clear_loss || loss + k * sigma < c.suspect_loss {
             Some(ThrusterStatus::Nominal)
@@ -442,12 +477,14 @@ mod tests {
         let changes = run(&mut d, &series);
         let port: Vec<_> = changes.iter().filter(|c| c.side == Side::Port).collect();
         assert_eq!(port.len(), 1, "{port:?}");
-        // Suspect evidence from t where loss >= 0.05 and loss - 0.04 > 0: t ~ 5.8 s;
-        // 3 s later the evidence shows a fault, declared at once; the onset is
-        // the first evidence, not the confirmation.
+        // Suspect evidence from t where loss >= 0.05 and loss - 0.04 >= 0.03:
+        // t ~ 6.2 s; 3 s later the evidence shows a fault, declared at once
+        // (no suspect on the way). The onset is the last sample before that
+        // evidence with the loss below the clear level (5.4 s, 0.024), not
+        // the confirmation.
         assert_eq!(port[0].to, ThrusterStatus::Fault);
-        assert!((port[0].onset_time_s - 5.8).abs() < 0.21, "{:?}", port[0]);
-        assert!((port[0].time_s - port[0].onset_time_s - 3.0).abs() < 0.21);
+        assert!((port[0].onset_time_s - 5.4).abs() < 0.05, "{:?}", port[0]);
+        assert!((port[0].time_s - 9.2).abs() < 0.05, "{:?}", port[0]);
         assert!(port[0].confidence > 0.99);
         assert_eq!(
             d.decision(Side::Port).onset_time_s,
@@ -455,19 +492,19 @@ mod tests {
         );
         assert_eq!(d.overall(), ThrusterStatus::Fault);
         assert_eq!(d.decision(Side::Starboard).status, ThrusterStatus::Nominal);
-        // A steady 7 % loss is a suspect, not a fault.
+        // A steady 7 % loss is a suspect, not a fault, declared after the
+        // suspect's longer confirmation.
         let mut d = FaultDecider::new(DecisionConfig::default());
         let c = run(
             &mut d,
-            &(0..100)
+            &(0..300)
                 .map(|k| (k as f64 * 0.1, 0.07, 0.01, true))
                 .collect::<Vec<_>>(),
         );
         assert_eq!(c.len(), 1);
-        assert_eq!(
-            (c[0].to, c[0].onset_time_s, c[0].time_s),
-            (ThrusterStatus::Suspect, 0.0, 3.0)
-        );
+        assert_eq!(c[0].to, ThrusterStatus::Suspect);
+        assert_eq!(c[0].onset_time_s, 0.0);
+        assert!((c[0].time_s - 15.0).abs() < 0.05, "{:?}", c[0]);
     }
 
     #[test]
@@ -517,6 +554,43 @@ mod tests {
         assert_eq!(c.len(), 1);
         assert_eq!(c[0].to, ThrusterStatus::Nominal);
         assert!(d.decision(Side::Port).onset_time_s.is_none());
+    }
+
+    #[test]
+    fn a_fault_wandering_near_its_threshold_stays_a_fault_until_confidently_below() {
+        let mut d = FaultDecider::new(DecisionConfig::default());
+        run(
+            &mut d,
+            &(0..100)
+                .map(|k| (k as f64 * 0.1, 0.2, 0.02, true))
+                .collect::<Vec<_>>(),
+        );
+        assert_eq!(d.decision(Side::Port).status, ThrusterStatus::Fault);
+        // 0.08 +- 0.03 for a minute: within reach of the fault level at two
+        // sigmas, so no evidence of a suspect; the fault holds.
+        let c = run(
+            &mut d,
+            &(100..700)
+                .map(|k| (k as f64 * 0.1, 0.08, 0.03, true))
+                .collect::<Vec<_>>(),
+        );
+        assert!(c.is_empty(), "{c:?}");
+        assert_eq!(d.decision(Side::Port).status, ThrusterStatus::Fault);
+        // 0.07 +- 0.01: confidently below the fault level, above the clear
+        // level: a suspect after the clearing time, the episode's onset kept.
+        let c = run(
+            &mut d,
+            &(700..900)
+                .map(|k| (k as f64 * 0.1, 0.07, 0.01, true))
+                .collect::<Vec<_>>(),
+        );
+        assert_eq!(c.len(), 1, "{c:?}");
+        assert_eq!(
+            (c[0].from, c[0].to),
+            (ThrusterStatus::Fault, ThrusterStatus::Suspect)
+        );
+        assert!((c[0].time_s - 80.0).abs() < 0.05, "{:?}", c[0]);
+        assert_eq!(d.decision(Side::Port).onset_time_s, Some(0.0));
     }
 
     #[test]

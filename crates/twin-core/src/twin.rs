@@ -491,6 +491,9 @@ struct KineticEstimator {
     /// of its degrees of freedom (see
     /// [`KineticConfig::max_explained_nis_per_dof`]).
     nis_moments: [f64; 2],
+    /// Whether the comparison of the propellers was excited at the last
+    /// fix ([`KineticConfig::relative_release_sigma`]).
+    comparison_told: bool,
 }
 
 impl KineticEstimator {
@@ -556,6 +559,9 @@ impl KineticEstimator {
             }
             (None, _) => self.nis_moments = [0.0; 2],
             _ => {}
+        }
+        if dt_s.is_none() {
+            self.comparison_told = false;
         }
     }
 
@@ -674,6 +680,7 @@ impl VesselTwin {
                 heading_mean: [0.0; 2],
                 yaw_rate_moments: [0.0; 3],
                 nis_moments: [0.0; 2],
+                comparison_told: false,
                 last_input: None,
             },
             config,
@@ -953,6 +960,7 @@ impl VesselTwin {
                     relative_sigma: t.relative_sigma,
                     relative_excited: t.relative_excited,
                 });
+                self.kinetic.comparison_told = faults.thrusters[0].relative_excited;
                 self.decider.update(fix.time_s, evidence)
             }
             FaultSource::SeedMethod => Vec::new(),
@@ -1174,10 +1182,12 @@ impl VesselTwin {
                 // ([`KineticConfig::plausible_profile_sigmas`]).
                 let yaw_balance_told =
                     self.kinetic.yaw_balance_told(&self.config.kinetic) && mismatch.is_none();
-                let r = self
-                    .kinetic
-                    .base
-                    .losses(k, common_part_told, yaw_balance_told);
+                let r = self.kinetic.base.losses(
+                    k,
+                    common_part_told,
+                    yaw_balance_told,
+                    self.kinetic.comparison_told,
+                );
                 let damping_of = |i: usize| (k.theta[i], k.s[(i, i)].max(0.0).sqrt());
                 (
                     FaultSource::Kinetic,

@@ -159,7 +159,10 @@ pub async fn run(
         summary.routed,
         summary.refused.total_rejected()
     );
-    for (vessel, counters) in &summary.vessels {
+    // By name: the summary's map has no order, the printout does.
+    let mut vessels: Vec<_> = summary.vessels.iter().collect();
+    vessels.sort_by(|a, b| a.0.cmp(b.0));
+    for (vessel, counters) in vessels {
         println!(
             "  {vessel}: accepted {:?}, rejected {:?}",
             counters.accepted(),

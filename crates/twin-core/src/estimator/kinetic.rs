@@ -58,6 +58,12 @@ pub struct KineticConfig {
     pub excitation_sigma: f64,
     /// The same for its loss relative to the other propeller.
     pub relative_excitation_sigma: f64,
+    /// Once the comparison of the propellers has been told, it stays told
+    /// while its standard deviation is within this (and the yaw balance is
+    /// still told): a loss that starts widens the filter's uncertainty
+    /// while it moves to the new value, and that is when the comparison
+    /// must be heard, not when the data have stopped telling it.
+    pub relative_release_sigma: f64,
     /// With the current estimated, a loss both propellers share and a
     /// current along the track slow the vessel alike: only turning
     /// separates them, and a filter linearised along that ridge claims more
@@ -200,7 +206,8 @@ impl KineticConfig {
             unmodelled_force_factor: f,
             max_propeller_age_s: 1.0,
             excitation_sigma: 0.1,
-            relative_excitation_sigma: 0.05,
+            relative_excitation_sigma: 0.06,
+            relative_release_sigma: 0.10,
             min_heading_spread: 0.05,
             min_yaw_rate_spread: 0.5,
             straight_yaw_rate_radps: 0.02,
@@ -355,6 +362,7 @@ pub struct KineticBase {
     initial_heading_bias_sigma_rad: f64,
     excitation_sigma: f64,
     relative_excitation_sigma: f64,
+    relative_release_sigma: f64,
     propeller_mismatch_sigma: f64,
     /// The losses' prior variance.
     prior_loss_variance: f64,
@@ -444,6 +452,7 @@ impl KineticBase {
             initial_heading_bias_sigma_rad: config.initial_heading_bias_sigma_rad,
             excitation_sigma: config.excitation_sigma,
             relative_excitation_sigma: config.relative_excitation_sigma,
+            relative_release_sigma: config.relative_release_sigma,
             propeller_mismatch_sigma: config.propeller_mismatch_sigma,
             prior_loss_variance: config.filter.initial_fault_covariance[(fault::PORT, fault::PORT)],
             // The thrust coefficient's and the surge damping's errors both
@@ -657,12 +666,15 @@ impl KineticBase {
     /// its own. `yaw_balance_told`: whether the yaw rates seen separate a
     /// difference of the losses from a yaw damping error (false on a steady
     /// turn, [`KineticConfig::min_yaw_rate_spread`]): without it the
-    /// comparison is not excited.
+    /// comparison is not excited. `comparison_was_told`: whether the
+    /// comparison was excited at the last fix
+    /// ([`KineticConfig::relative_release_sigma`]).
     pub fn losses(
         &self,
         state: &KineticState,
         common_part_told: bool,
         yaw_balance_told: bool,
+        comparison_was_told: bool,
     ) -> LossReading {
         let t = &state.theta;
         let s = &state.s;
@@ -726,7 +738,12 @@ impl KineticBase {
         // propeller's relative loss has the narrower uncertainty (it
         // divides by the stronger one's effectiveness), and once it is
         // within the bar the data tell both sides.
-        let pair_excited = yaw_balance_told && sp.min(ss) <= self.relative_excitation_sigma;
+        let bar = if comparison_was_told {
+            self.relative_release_sigma
+        } else {
+            self.relative_excitation_sigma
+        };
+        let pair_excited = yaw_balance_told && sp.min(ss) <= bar;
         let relative_excited = [pair_excited; 2];
         let excited = sigma.map(|s| common_part_told && s <= self.excitation_sigma);
         // Where the data do not tell the losses themselves, the losses
