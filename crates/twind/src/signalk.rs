@@ -35,7 +35,9 @@ use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::tungstenite::client::IntoClientRequest;
 use tokio_util::sync::CancellationToken;
 use twin_wire::Topic;
-use twin_wire::outputs::{FaultMessage, StateMessage, ThrusterMessage, ThrusterStatusName};
+use twin_wire::outputs::{
+    FaultMessage, ProfileMismatchMessage, StateMessage, ThrusterMessage, ThrusterStatusName,
+};
 
 use crate::settings::SettingsError;
 use crate::stats::{LOG_EVERY, RateLimit};
@@ -225,8 +227,14 @@ fn status_name(status: ThrusterStatusName) -> &'static str {
 
 /// The notification value of one propeller: `state`, `method` (`visual`
 /// and `sound` for an alarm, `visual` for a warning) and a `message` with
-/// the loss and its standard deviation.
-pub fn thrust_notification(side: &str, t: &ThrusterMessage) -> Value {
+/// the loss and its standard deviation, and, where the profile does not
+/// describe the vessel (`mismatch`), that the comparison of the
+/// propellers is withheld and why.
+pub fn thrust_notification(
+    side: &str,
+    t: &ThrusterMessage,
+    mismatch: Option<&ProfileMismatchMessage>,
+) -> Value {
     let state = alarm_state(t.status);
     let method: &[&str] = match state {
         "alarm" => &["visual", "sound"],
@@ -238,12 +246,17 @@ pub fn thrust_notification(side: &str, t: &ThrusterMessage) -> Value {
         (Some(l), None) => format!("loss {:.0} %", l * 100.0),
         (None, _) => "loss unknown".to_string(),
     };
-    let message = match t.status {
+    let mut message = match t.status {
         ThrusterStatusName::NotExcited => {
             format!("{side} thruster: not excited, the data do not tell its loss yet ({loss})")
         }
         other => format!("{side} thruster {}: {loss}", status_name(other)),
     };
+    if let Some(m) = mismatch {
+        message.push_str(&format!(
+            "; comparison withheld, the profile does not describe this vessel ({m})"
+        ));
+    }
     json!({ "state": state, "method": method, "message": message })
 }
 
@@ -293,7 +306,7 @@ pub fn fault_delta(context: &str, source: &str, f: &FaultMessage) -> Value {
     .map(|(side, t)| {
         json!({
             "path": format!("notifications.propulsion.{side}.thrustLoss"),
-            "value": thrust_notification(side, t),
+            "value": thrust_notification(side, t, f.profile_mismatch.as_ref()),
         })
     })
     .collect();
@@ -304,6 +317,8 @@ pub fn fault_delta(context: &str, source: &str, f: &FaultMessage) -> Value {
 #[derive(Debug)]
 struct Notified {
     states: [ThrusterStatusName; 2],
+    /// Whether the comparison was withheld (`profile_mismatch`).
+    withheld: bool,
     time_s: f64,
     delta: String,
 }
@@ -354,10 +369,13 @@ impl DeltaMapper {
         };
         let time_s = twin_wire::time::parse_rfc3339(&f.time).unwrap_or(f64::NAN);
         let states = [f.thrusters.port.status, f.thrusters.starboard.status];
+        let withheld = f.profile_mismatch.is_some();
         let due = self.notified.get(&ev.vessel).is_none_or(|last| {
             // A time that does not compare (NaN) makes it due too.
             let recent = time_s - last.time_s < self.settings.notification_interval_s;
-            last.states.map(alarm_state) != states.map(alarm_state) || !recent
+            last.states.map(alarm_state) != states.map(alarm_state)
+                || last.withheld != withheld
+                || !recent
         });
         if !due {
             return Mapped::Nothing;
@@ -367,6 +385,7 @@ impl DeltaMapper {
             ev.vessel.clone(),
             Notified {
                 states,
+                withheld,
                 time_s,
                 delta: delta.clone(),
             },
@@ -736,20 +755,23 @@ mod tests {
 
     #[test]
     fn statuses_become_signalk_alarm_states_with_methods_and_the_loss() {
-        let alarm = thrust_notification("port", &thruster(ThrusterStatusName::Fault, 0.25));
+        let alarm = thrust_notification("port", &thruster(ThrusterStatusName::Fault, 0.25), None);
         assert_eq!(alarm["state"], "alarm");
         assert_eq!(alarm["method"], json!(["visual", "sound"]));
         assert_eq!(
             alarm["message"],
             "port thruster fault: loss 25 % (sigma 2 %)"
         );
-        let warn = thrust_notification("port", &thruster(ThrusterStatusName::Suspect, 0.07));
+        let warn = thrust_notification("port", &thruster(ThrusterStatusName::Suspect, 0.07), None);
         assert_eq!(
             (warn["state"].as_str(), &warn["method"]),
             (Some("warn"), &json!(["visual"]))
         );
-        let quiet =
-            thrust_notification("starboard", &thruster(ThrusterStatusName::NotExcited, 0.0));
+        let quiet = thrust_notification(
+            "starboard",
+            &thruster(ThrusterStatusName::NotExcited, 0.0),
+            None,
+        );
         assert_eq!(quiet["state"], "normal");
         assert_eq!(quiet["method"], json!([]));
         assert!(quiet["message"].as_str().unwrap().contains("not excited"));
@@ -821,5 +843,54 @@ mod tests {
             m.map(&fault_event("b", "2024-01-01T00:00:00Z", nominal)),
             Mapped::Dropped("unmapped_vessel")
         );
+    }
+
+    /// A profile that stops describing the vessel is news on the displays
+    /// at once, though no status changes, and each propeller's message
+    /// says that the comparison is withheld, with the figures.
+    #[test]
+    fn a_withheld_comparison_is_sent_at_once_and_says_why() {
+        let s = settings("url = \"ws://x/\"\nself_vessel = \"a\"\nnotification_interval_s = 60\n")
+            .unwrap();
+        let mut m = DeltaMapper::new(s);
+        let nominal = ThrusterStatusName::Nominal;
+        assert!(matches!(
+            m.map(&fault_event("a", "2024-01-01T00:00:00Z", nominal)),
+            Mapped::Delta(_)
+        ));
+        let mut withheld = fault_event("a", "2024-01-01T00:00:01Z", nominal);
+        let mut f: FaultMessage = serde_json::from_str(&withheld.json).unwrap();
+        f.profile_mismatch = Some(ProfileMismatchMessage {
+            yaw_damping_error: 0.91,
+            yaw_damping_bound: 0.75,
+            mass_error: -0.52,
+            mass_bound: 0.75,
+            nis_per_dof: 0.8,
+            max_nis_per_dof: 2.0,
+        });
+        withheld.json = serde_json::to_string(&f).unwrap().into();
+        let Mapped::Delta(delta) = m.map(&withheld) else {
+            panic!("a withheld comparison is sent within the interval");
+        };
+        let v: Value = serde_json::from_str(&delta).unwrap();
+        for (i, side) in ["port", "starboard"].into_iter().enumerate() {
+            let value = &v["updates"][0]["values"][i]["value"];
+            assert_eq!(value["state"], "normal");
+            assert_eq!(
+                value["message"],
+                format!(
+                    "{side} thruster nominal: loss {} % (sigma 2 %); comparison withheld, the profile does not describe this vessel (yaw damping error +0.91, at most +-0.75; mass error -0.52, at most +-0.75; NIS per dof over the last minute 0.80, at most 2.0)",
+                    if i == 0 { 20 } else { 0 }
+                )
+            );
+        }
+        // Unchanged, it waits for the interval again.
+        withheld.json = serde_json::to_string(&FaultMessage {
+            time: "2024-01-01T00:00:02Z".into(),
+            ..f
+        })
+        .unwrap()
+        .into();
+        assert_eq!(m.map(&withheld), Mapped::Nothing);
     }
 }
