@@ -35,6 +35,12 @@
 //! - while a thruster is not excited its status holds (a broken propeller
 //!   stays broken on a straight line); a thruster never excited is
 //!   `NotExcited`;
+//! - where neither judgement is excited but the comparison is told weakly
+//!   (`relative_weakly_told`: its standard deviation within a wider bar),
+//!   only its evidence of a fault counts, and it must persist
+//!   `weak_confirm_s`, a filter's memory: a loss the data have shown for
+//!   that long is declared, while a transient of the estimate is not.
+//!   Weak evidence of anything less claims nothing;
 //! - the onset is the last time before the episode's first evidence that
 //!   the propeller looked healthy (its loss, and its loss relative to the
 //!   other, below `clear_loss`, whether or not the data excited them): an
@@ -87,13 +93,17 @@ pub struct DecisionConfig {
     pub confirm_s: f64,
     /// How long evidence of a suspect must persist before it is declared, s.
     pub suspect_confirm_s: f64,
+    /// How long evidence of a fault from a weakly told comparison (and
+    /// nothing else told) must persist before it is declared, s.
+    pub weak_confirm_s: f64,
     /// How long a lower level must persist before it is declared, s.
     pub clear_s: f64,
 }
 
 impl Default for DecisionConfig {
     /// Suspect at 5 %, fault at 10 %, clear below 3 %, two sigmas, 3 s to
-    /// confirm a fault, 15 s to confirm a suspect and 10 s to clear. The
+    /// confirm a fault (60 s from a weakly told comparison), 15 s to
+    /// confirm a suspect and 10 s to clear. The
     /// seed's healthy propellers showed 0-4 % input faults, its broken one
     /// 12-18 %.
     fn default() -> Self {
@@ -104,6 +114,7 @@ impl Default for DecisionConfig {
             confidence_sigmas: 2.0,
             confirm_s: 3.0,
             suspect_confirm_s: 15.0,
+            weak_confirm_s: 60.0,
             clear_s: 10.0,
         }
     }
@@ -124,6 +135,9 @@ pub struct LossEvidence {
     pub relative_sigma: f64,
     /// Whether the data can tell the relative loss.
     pub relative_excited: bool,
+    /// Whether they tell it weakly: not excited, but within a wider bar
+    /// (`KineticConfig::relative_release_sigma`).
+    pub relative_weakly_told: bool,
 }
 
 /// A change of one thruster's status (an alarm).
@@ -228,23 +242,15 @@ impl FaultDecider {
                 self.sides[i].looked_healthy_s = Some(time_s);
             }
             let at_fault = self.sides[i].status == ThrusterStatus::Fault;
-            let absolute = (e.excited && e.loss.is_finite() && e.sigma.is_finite())
-                .then(|| self.evidence(e.loss, e.sigma, at_fault));
-            let relative =
-                (e.relative_excited && e.relative_loss.is_finite() && e.relative_sigma.is_finite())
-                    .then(|| self.evidence(e.relative_loss, e.relative_sigma, at_fault));
-            if absolute.is_none() && relative.is_none() {
+            let Some(judged) = self.judge(&e, at_fault) else {
                 continue;
-            }
-            let evidence = combine(absolute.flatten(), relative.flatten());
-            // The confidence of a change is that of the judgement that made it.
-            let (loss_i, sigma_i) = match (absolute.flatten(), relative.flatten()) {
-                (_, Some(r)) if Some(r) == evidence => (e.relative_loss, e.relative_sigma),
-                _ => (e.loss, e.sigma),
             };
+            let weak = judged.weak;
+            let (loss_i, sigma_i) = (judged.loss, judged.sigma);
+            let evidence = judged.level;
             let cfg = self.config;
             let st = &mut self.sides[i];
-            if st.status == ThrusterStatus::NotExcited {
+            if st.status == ThrusterStatus::NotExcited && !weak {
                 // First time the data can tell: start from nominal.
                 st.status = ThrusterStatus::Nominal;
             }
@@ -272,7 +278,9 @@ impl FaultDecider {
                     time_s
                 }
             };
-            let needed = if level == ThrusterStatus::Fault {
+            let needed = if weak {
+                cfg.weak_confirm_s
+            } else if level == ThrusterStatus::Fault {
                 cfg.confirm_s
             } else if level > st.status {
                 cfg.suspect_confirm_s
@@ -308,6 +316,42 @@ impl FaultDecider {
         changes
     }
 
+    /// What the evidence `e` shows (module doc), `None` where nothing is
+    /// told; `at_fault`: whether the thruster is at fault now.
+    fn judge(&self, e: &LossEvidence, at_fault: bool) -> Option<Judged> {
+        let absolute = (e.excited && e.loss.is_finite() && e.sigma.is_finite())
+            .then(|| self.evidence(e.loss, e.sigma, at_fault));
+        let relative =
+            (e.relative_excited && e.relative_loss.is_finite() && e.relative_sigma.is_finite())
+                .then(|| self.evidence(e.relative_loss, e.relative_sigma, at_fault));
+        if absolute.is_none() && relative.is_none() {
+            // Only a weakly told comparison: only its fault counts.
+            let weak = e.relative_weakly_told
+                && e.relative_loss.is_finite()
+                && e.relative_sigma.is_finite();
+            return weak.then(|| Judged {
+                level: (self.evidence(e.relative_loss, e.relative_sigma, at_fault)
+                    == Some(ThrusterStatus::Fault))
+                .then_some(ThrusterStatus::Fault),
+                weak: true,
+                loss: e.relative_loss,
+                sigma: e.relative_sigma,
+            });
+        }
+        let level = combine(absolute.flatten(), relative.flatten());
+        // The confidence of a change is that of the judgement that made it.
+        let (loss, sigma) = match relative.flatten() {
+            Some(r) if Some(r) == level => (e.relative_loss, e.relative_sigma),
+            _ => (e.loss, e.sigma),
+        };
+        Some(Judged {
+            level,
+            weak: false,
+            loss,
+            sigma,
+        })
+    }
+
     /// What one judgement shows (module doc); `at_fault`: whether the
     /// thruster is at fault now.
     fn evidence(&self, loss: f64, sigma: f64, at_fault: bool) -> Option<ThrusterStatus> {
@@ -326,6 +370,17 @@ impl FaultDecider {
             None
         }
     }
+}
+
+/// What one propeller's evidence shows.
+struct Judged {
+    /// The level it shows, if any.
+    level: Option<ThrusterStatus>,
+    /// Whether it comes from a weakly told comparison alone.
+    weak: bool,
+    /// The loss of the judgement that decides, and its sigma.
+    loss: f64,
+    sigma: f64,
 }
 
 /// The stronger of two judgements (module doc): a fault or suspect from
@@ -376,6 +431,7 @@ mod tests {
             relative_loss: f64::NAN,
             relative_sigma: f64::NAN,
             relative_excited: false,
+            relative_weakly_told: false,
         }
     }
 
@@ -407,6 +463,7 @@ mod tests {
             relative_loss: 0.2,
             relative_sigma: 0.02,
             relative_excited: true,
+            relative_weakly_told: false,
         };
         let starboard = LossEvidence {
             loss: -0.08,
@@ -415,6 +472,7 @@ mod tests {
             relative_loss: -0.25,
             relative_sigma: 0.025,
             relative_excited: true,
+            relative_weakly_told: false,
         };
         let changes: Vec<StatusChange> = (0..60)
             .flat_map(|k| d.update(k as f64 * 0.2, [port, starboard]))
@@ -433,6 +491,7 @@ mod tests {
             relative_loss: 0.0,
             relative_sigma: 0.02,
             relative_excited: true,
+            relative_weakly_told: false,
         };
         let changes: Vec<StatusChange> = (0..60)
             .flat_map(|k| d.update(k as f64 * 0.2, [common, common]))
@@ -591,6 +650,50 @@ mod tests {
         );
         assert!((c[0].time_s - 80.0).abs() < 0.05, "{:?}", c[0]);
         assert_eq!(d.decision(Side::Port).onset_time_s, Some(0.0));
+    }
+
+    /// A comparison told only weakly, nothing else told.
+    fn weakly(relative_loss: f64) -> LossEvidence {
+        LossEvidence {
+            loss: relative_loss.max(0.0),
+            sigma: 0.5,
+            excited: false,
+            relative_loss,
+            relative_sigma: 0.08,
+            relative_excited: false,
+            relative_weakly_told: true,
+        }
+    }
+
+    #[test]
+    fn a_weakly_told_fault_must_last_a_minute_and_claims_nothing_else() {
+        let feed = |d: &mut FaultDecider, from: usize, to: usize, port: f64| -> Vec<StatusChange> {
+            (from..to)
+                .flat_map(|k| d.update(k as f64 * 0.2, [weakly(port), weakly(-port)]))
+                .collect()
+        };
+        // 0.25 +- 0.08: fault evidence (0.25 - 0.16 >= 0.05), but weak.
+        let mut d = FaultDecider::new(DecisionConfig::default());
+        assert!(feed(&mut d, 0, 295, 0.25).is_empty());
+        assert_eq!(d.decision(Side::Port).status, ThrusterStatus::NotExcited);
+        let c = feed(&mut d, 295, 305, 0.25);
+        assert_eq!(c.len(), 1, "{c:?}");
+        assert_eq!(
+            (c[0].from, c[0].to, c[0].time_s),
+            (ThrusterStatus::NotExcited, ThrusterStatus::Fault, 60.0)
+        );
+        // The other side's weak comparison shows nothing worse than
+        // nominal: it is not called nominal on weak evidence.
+        assert_eq!(
+            d.decision(Side::Starboard).status,
+            ThrusterStatus::NotExcited
+        );
+        // Weak fault evidence that lapses before the minute is nothing.
+        let mut d = FaultDecider::new(DecisionConfig::default());
+        assert!(feed(&mut d, 0, 200, 0.25).is_empty());
+        assert!(feed(&mut d, 200, 201, 0.1).is_empty());
+        assert!(feed(&mut d, 201, 400, 0.25).is_empty());
+        assert_eq!(d.decision(Side::Port).status, ThrusterStatus::NotExcited);
     }
 
     #[test]

@@ -246,6 +246,9 @@ pub struct ThrusterEstimate {
     pub relative_sigma: f64,
     /// Whether the recent data can tell the relative loss.
     pub relative_excited: bool,
+    /// Whether they tell it only weakly (a fault from it must last longer,
+    /// `twin_core::decision`).
+    pub relative_weakly_told: bool,
     /// The decision about it.
     pub decision: ThrusterDecision,
 }
@@ -959,6 +962,7 @@ impl VesselTwin {
                     relative_loss: t.relative_loss,
                     relative_sigma: t.relative_sigma,
                     relative_excited: t.relative_excited,
+                    relative_weakly_told: t.relative_weakly_told,
                 });
                 self.kinetic.comparison_told = faults.thrusters[0].relative_excited;
                 self.decider.update(fix.time_s, evidence)
@@ -1198,6 +1202,7 @@ impl VesselTwin {
                         relative_loss: r.relative_loss[i],
                         relative_sigma: r.relative_sigma[i],
                         relative_excited: r.relative_excited[i],
+                        relative_weakly_told: r.relative_weakly_told[i],
                         decision: self.decider.decision(Side::BOTH[i]),
                     }),
                     r.covariance,
@@ -1218,6 +1223,7 @@ impl VesselTwin {
                     relative_loss: f64::NAN,
                     relative_sigma: f64::NAN,
                     relative_excited: false,
+                    relative_weakly_told: false,
                     decision: ThrusterDecision {
                         status: ThrusterStatus::NotExcited,
                         onset_time_s: None,

@@ -403,6 +403,10 @@ pub struct LossReading {
     /// standard deviations (the weaker propeller's) is within the
     /// configured bar. The same for both sides.
     pub relative_excited: [bool; 2],
+    /// Whether the relative losses are told weakly: not excited, but the
+    /// narrower standard deviation within
+    /// [`KineticConfig::relative_release_sigma`] and the yaw balance told.
+    pub relative_weakly_told: [bool; 2],
 }
 
 impl KineticBase {
@@ -745,6 +749,8 @@ impl KineticBase {
         };
         let pair_excited = yaw_balance_told && sp.min(ss) <= bar;
         let relative_excited = [pair_excited; 2];
+        let relative_weakly_told =
+            [!pair_excited && yaw_balance_told && sp.min(ss) <= self.relative_release_sigma; 2];
         let excited = sigma.map(|s| common_part_told && s <= self.excitation_sigma);
         // Where the data do not tell the losses themselves, the losses
         // published are the smallest the comparison of the propellers
@@ -773,6 +779,7 @@ impl KineticBase {
             // never is.
             excited,
             relative_excited,
+            relative_weakly_told,
         }
     }
 }
