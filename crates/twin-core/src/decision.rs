@@ -103,9 +103,8 @@ pub struct DecisionConfig {
 impl Default for DecisionConfig {
     /// Suspect at 5 %, fault at 10 %, clear below 3 %, two sigmas, 3 s to
     /// confirm a fault (60 s from a weakly told comparison), 15 s to
-    /// confirm a suspect and 10 s to clear. The
-    /// seed's healthy propellers showed 0-4 % input faults, its broken one
-    /// 12-18 %.
+    /// confirm a suspect and 10 s to clear. The seed's healthy propellers
+    /// showed 0-4 % input faults, its broken one 12-18 %.
     fn default() -> Self {
         Self {
             suspect_loss: 0.05,
