@@ -62,7 +62,10 @@ pub struct KineticConfig {
     /// while its standard deviation is within this (and the yaw balance is
     /// still told): a loss that starts widens the filter's uncertainty
     /// while it moves to the new value, and that is when the comparison
-    /// must be heard, not when the data have stopped telling it.
+    /// must be heard, not when the data have stopped telling it. Within
+    /// it, a comparison not told is told weakly
+    /// ([`LossReading::relative_weakly_told`]): the decision then takes
+    /// its fault only after a minute of evidence (`twin_core::decision`).
     pub relative_release_sigma: f64,
     /// With the current estimated, a loss both propellers share and a
     /// current along the track slow the vessel alike: only turning
