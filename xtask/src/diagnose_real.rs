@@ -219,7 +219,7 @@ pub fn markdown(logs: &[(String, LogOutcome)]) -> String {
             let (log, model, wrong) = if i == 0 {
                 (name.as_str(), model.clone(), what_is_wrong(r))
             } else {
-                ("", String::new(), "(then)".to_string())
+                ("", String::new(), "(and)".to_string())
             };
             let _ = writeln!(
                 s,

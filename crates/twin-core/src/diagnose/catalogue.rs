@@ -113,9 +113,9 @@ pub(super) struct CauseSpec {
     /// Whether it can be tried on a log.
     pub applies: fn(&LogKind) -> bool,
     /// A cause of the vessel's dynamics: the forecasts run on them, so it
-    /// must make the held-out forecast at the longest horizon better (a
-    /// steady force it would only absorb, a wind or a turning current,
-    /// makes it worse).
+    /// must make the held-out forecasts better over the horizons taken
+    /// together (a steady force it would only absorb, a wind or a turning
+    /// current, makes them worse).
     pub must_improve_forecast: bool,
     /// How it is searched, and how its parameters are reported.
     pub search: Search,
@@ -155,6 +155,35 @@ pub(super) struct StateSearch {
     /// What estimates outside the cause's physical bounds are evidence of
     /// (`None` when they are within them).
     pub beyond: fn(&AtSplit) -> Option<&'static str>,
+    /// A part of the states that another cause moves the vessel alike
+    /// with (`None` when there is none).
+    pub shared: Option<SharedPart>,
+}
+
+/// The part of a state cause's estimates that another cause imitates
+/// exactly on steady motion: both propellers losing alike is the hull's
+/// resistance being off. Where that cause, fitted on top, takes the part
+/// away without the held-out data getting worse, the part is named as
+/// that cause (the issue's "a hull 30 % draggier is a finding, not a pair
+/// of propeller losses").
+pub(super) struct SharedPart {
+    /// The cause that moves the vessel alike.
+    pub cause: Cause,
+    /// The shared part's size from the estimates (0 when there is none).
+    pub size: fn(&AtSplit) -> f64,
+    /// What the finding's evidence says of the part taken.
+    pub what: &'static str,
+}
+
+/// The part both losses share: the smaller in size where they have the
+/// same sign, else none.
+fn shared_loss(s: &AtSplit) -> f64 {
+    let [p, q] = s.loss;
+    if p.signum() == q.signum() {
+        if p.abs() < q.abs() { p } else { q }
+    } else {
+        0.0
+    }
 }
 
 /// A one-parameter cause.
@@ -309,6 +338,7 @@ static CURRENT: CauseSpec = CauseSpec {
         beyond: |s| {
             (s.current[0].hypot(s.current[1]) > MAX_CURRENT_MPS).then_some(TOO_FAST_CURRENT)
         },
+        shared: None,
     }),
 };
 
@@ -329,6 +359,11 @@ static THRUSTER_LOSS: CauseSpec = CauseSpec {
                 None
             }
         },
+        shared: Some(SharedPart {
+            cause: Cause::SurgeDamping,
+            size: shared_loss,
+            what: "the loss both propellers shared",
+        }),
     }),
 };
 

@@ -37,13 +37,27 @@
 //!    act on; of two causes whose gains are within `min_gain_nll` of each
 //!    other, the one with fewer parameters. Then the others are tried again
 //!    on top of it, until none clears the bars: combined effects are found
-//!    one after the other. Last, each finding is judged again against the
+//!    one after the other. Then each finding is judged again against the
 //!    model with all the others, and one that no longer gains
-//!    `min_gain_nll` is dropped.
+//!    `min_gain_nll` is dropped; each is fitted again with the others in
+//!    the model (a joint refit, one cause at a time), and every cause not
+//!    named is fitted in its place: one that explains the held-out data
+//!    better by `min_gain_nll`, or as well with fewer parameters, without
+//!    forecasting worse, replaces it (the greedy order names first what
+//!    imitates two effects at once: a fore-aft lever arm for a latency on
+//!    a draggier hull), and one whose refit no longer clears its bars is
+//!    dropped. Last, a part of a finding that another cause imitates
+//!    exactly on steady motion (the loss both propellers share, and the
+//!    hull's resistance) goes to that cause where its fit, with the
+//!    finding's states free, takes the part away and the held-out data
+//!    and forecasts do not get worse. A cause of the vessel's dynamics
+//!    must make the held-out forecasts better over the horizons taken
+//!    together (a steady force it only absorbs makes them worse).
 //! 6. **Report** ([`Diagnosis`]): per finding the cause, its parameters
-//!    with uncertainty, the evidence in the nominal residuals, and the gain
-//!    on held-out data (log-likelihood, NIS per degree of freedom, position
-//!    prediction RMSE at each horizon, before and after); and
+//!    with uncertainty, the evidence in the residuals, and the gain on
+//!    held-out data against the model with every other finding
+//!    (log-likelihood, NIS per degree of freedom, position prediction RMSE
+//!    at each horizon, without and with it); and
 //!    [`Unexplained`] when the findings leave the held-out residuals well
 //!    outside what the filter expects.
 //!
