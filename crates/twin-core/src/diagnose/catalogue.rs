@@ -175,15 +175,13 @@ pub(super) struct SharedPart {
     pub what: &'static str,
 }
 
-/// The part both losses share: the smaller in size where they have the
-/// same sign, else none.
+/// The part both losses share: the smaller loss. Taken from both, it
+/// leaves one propeller at none and the other with the difference, the
+/// only split with no negative loss (a propeller giving more thrust than
+/// its profile says): `[0.23, 0.51]` shares 0.23, `[-0.31, 0.19]` shares
+/// -0.31 (a less draggy hull) and leaves a loss of 0.50.
 fn shared_loss(s: &AtSplit) -> f64 {
-    let [p, q] = s.loss;
-    if p.signum() == q.signum() {
-        if p.abs() < q.abs() { p } else { q }
-    } else {
-        0.0
-    }
+    s.loss[0].min(s.loss[1])
 }
 
 /// A one-parameter cause.
@@ -655,6 +653,30 @@ mod tests {
             None,
             "too small to be a loss"
         );
+    }
+
+    /// The losses' shared part is the smaller loss, declared as the hull's
+    /// surge damping: taken from both, it leaves no negative loss.
+    #[test]
+    fn the_losses_share_the_smaller_one_with_the_hull() {
+        let Search::States(st) = &Cause::ThrusterLoss.spec().search else {
+            panic!("the losses are states");
+        };
+        let shared = st.shared.as_ref().expect("the losses have a shared part");
+        assert_eq!(shared.cause, Cause::SurgeDamping);
+        let part = |loss: [f64; 2]| {
+            (shared.size)(&AtSplit {
+                loss,
+                ..AtSplit::default()
+            })
+        };
+        assert_eq!(part([0.23, 0.51]), 0.23);
+        assert_eq!(part([0.19, -0.31]), -0.31);
+        assert_eq!(part([0.0, 0.4]), 0.0);
+        let Search::States(current) = &Cause::Current.spec().search else {
+            panic!("the current is states");
+        };
+        assert!(current.shared.is_none());
     }
 
     #[test]

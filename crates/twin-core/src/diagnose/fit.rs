@@ -5,7 +5,7 @@
 //! function.
 
 use super::catalogue::{
-    Cause, LogKind, OUTSIDE_HULL, PlaneSearch, ScalarSearch, Search, StateSearch,
+    Cause, LogKind, OUTSIDE_HULL, PlaneSearch, ScalarSearch, Search, SharedPart, StateSearch,
 };
 use super::pass::{AtSplit, PassOptions, PassOut, kinetic_pass, water_pass};
 use super::prepare::Prepared;
@@ -361,6 +361,16 @@ struct Fitted {
     /// The state estimates of the fitting pass (for refreshing the
     /// parameters of state causes accepted earlier and re-estimated jointly).
     states: Option<AtSplit>,
+    /// The cause fitted with it for the part of its states that the other
+    /// imitates ([`SharedPart`]): the two are one candidate.
+    companion: Option<Box<Fitted>>,
+}
+
+impl Fitted {
+    /// How many parameters the candidate fits, with its companion's.
+    fn parameter_count(&self) -> usize {
+        self.cause.parameter_count() + self.companion.as_ref().map_or(0, |c| c.parameter_count())
+    }
 }
 
 impl Hypothesis {
@@ -413,6 +423,174 @@ fn fit(ctx: &Ctx<'_>, accepted: &Hypothesis, cause: Cause) -> Option<Fitted> {
     }
 }
 
+/// A state cause fitted together with the cause that imitates its shared
+/// part ([`SharedPart`]), where the state cause's own fit has such a part
+/// of a practical size and the model does not yet hold that cause: the
+/// companion fitted on top with the states free (a one-sided loss on a
+/// less draggy hull wants a negative loss on the other side alone, and is
+/// a loss on its side with the hull beside it). `None` where there is no
+/// such part, or the companion leaves it.
+fn fit_with_shared(ctx: &Ctx<'_>, accepted: &Hypothesis, alone: &Fitted) -> Option<Fitted> {
+    let Search::States(search) = &alone.cause.spec().search else {
+        return None;
+    };
+    let shared = search.shared.as_ref()?;
+    let states = alone.states?;
+    let practical = (search.report)(&states, &ctx.config.acceptance).practical;
+    if (shared.size)(&states).abs() < practical || without(accepted, shared.cause) != *accepted {
+        return None;
+    }
+    let mut train = accepted.with_states_free();
+    (search.free)(&mut train);
+    let Search::Scalar(scalar) = &shared.cause.spec().search else {
+        return None;
+    };
+    let ml = fit_scalar(ctx, train, shared.cause, scalar);
+    let v_ml = scalar_value(scalar, ml.parameters[0].1);
+    let sd = scalar_value(scalar, ml.parameters[0].2);
+    // Nearly flat along the ridge: where the maximum still shares a part,
+    // the point on it that shares none.
+    let (at, hypothesis, joint) = Ridge {
+        ctx,
+        train,
+        scalar,
+        shared,
+    }
+    .at_or_off(v_ml, sd, practical)?;
+    let (lo, hi) = scalar.bounds;
+    let companion = Fitted {
+        hypothesis,
+        parameters: vec![(scalar.parameter, (scalar.shown)(at), (scalar.shown)(sd))],
+        size: (at - scalar.neutral).abs(),
+        z: (at - scalar.neutral).abs() / sd.max(1e-12),
+        at_edge: near_edge(at, lo, hi),
+        ..ml
+    };
+    let hypothesis = companion.hypothesis;
+    Some(Fitted {
+        companion: Some(Box::new(Fitted {
+            states: None,
+            ..companion
+        })),
+        ..state_fitted(ctx, alone.cause, search, hypothesis, joint)
+    })
+}
+
+/// A state cause's candidate: its hypothesis (the states fixed at
+/// `states`) and its report from them.
+fn state_fitted(
+    ctx: &Ctx<'_>,
+    cause: Cause,
+    search: &StateSearch,
+    hypothesis: Hypothesis,
+    states: AtSplit,
+) -> Fitted {
+    let r = (search.report)(&states, &ctx.config.acceptance);
+    Fitted {
+        cause,
+        hypothesis,
+        parameters: r.parameters,
+        side: r.side,
+        size: r.size,
+        z: r.z,
+        practical: r.practical,
+        at_edge: false,
+        beyond_physics: (search.beyond)(&states),
+        states: Some(states),
+        companion: None,
+    }
+}
+
+/// A scalar cause's value in the hypothesis' unit from its shown one (the
+/// model-parameter scales are shown as they are).
+fn scalar_value(scalar: &ScalarSearch, shown: f64) -> f64 {
+    debug_assert_eq!((scalar.shown)(1.0), 1.0, "a scale is shown as it is");
+    shown
+}
+
+/// The ridge between a state cause's shared part and the cause that
+/// imitates it: the training hypothesis (the states free) and the
+/// companion's search.
+struct Ridge<'c, 'a> {
+    ctx: &'c Ctx<'a>,
+    train: Hypothesis,
+    scalar: &'static ScalarSearch,
+    shared: &'static SharedPart,
+}
+
+impl Ridge<'_, '_> {
+    /// The training pass with the companion at `v`.
+    fn at(&self, v: f64) -> Option<(Hypothesis, PassOut)> {
+        let mut h = self.train;
+        (self.scalar.set)(&mut h, v);
+        let out = self.ctx.pass(&h, true, false);
+        (!out.failed).then_some((h, out))
+    }
+
+    /// The companion at its maximum `v_ml` where that leaves the shared
+    /// part below `practical`, else the point on the ridge that shares none
+    /// ([`Self::where_none_is_shared`]): its value, the hypothesis with the
+    /// states fixed there, and the states.
+    fn at_or_off(&self, v_ml: f64, sd: f64, practical: f64) -> Option<(f64, Hypothesis, AtSplit)> {
+        let (mut h, out) = self.at(v_ml)?;
+        if (self.shared.size)(&out.at_split).abs() < practical {
+            h.fix_states(&out.at_split);
+            return Some((v_ml, h, out.at_split));
+        }
+        self.where_none_is_shared(v_ml, sd, &out)
+    }
+
+    /// Where the training likelihood along the companion's parameter is
+    /// nearly flat (the shared part and the companion trading off), the
+    /// point on it at which the states share nothing: bracketed from the
+    /// maximum `v_ml` (standard deviation `sd`, pass `at_ml`) outwards,
+    /// then bisected on the shared part's sign. Taken only where the
+    /// training likelihood there is within `min_gain_nll` of the
+    /// maximum's: the simpler split of the same motion, never one the data
+    /// argue against.
+    fn where_none_is_shared(
+        &self,
+        v_ml: f64,
+        sd: f64,
+        at_ml: &PassOut,
+    ) -> Option<(f64, Hypothesis, AtSplit)> {
+        let part = |out: &PassOut| (self.shared.size)(&out.at_split);
+        let sign_ml = part(at_ml).signum();
+        let (lo, hi) = self.scalar.bounds;
+        let mut step = (4.0 * sd).max(0.02 * (hi - lo));
+        let mut other = None;
+        for _ in 0..4 {
+            other = [v_ml + step, v_ml - step]
+                .into_iter()
+                .filter(|v| (lo..=hi).contains(v))
+                .find(|v| {
+                    self.at(*v)
+                        .is_some_and(|(_, o)| part(&o).signum() != sign_ml)
+                });
+            if other.is_some() {
+                break;
+            }
+            step *= 2.0;
+        }
+        let (mut a, mut b) = (v_ml, other?);
+        for _ in 0..10 {
+            let m = 0.5 * (a + b);
+            if part(&self.at(m)?.1).signum() == sign_ml {
+                a = m;
+            } else {
+                b = m;
+            }
+        }
+        let v = 0.5 * (a + b);
+        let (mut h, out) = self.at(v)?;
+        if out.nll_train > at_ml.nll_train + self.ctx.config.acceptance.min_gain_nll {
+            return None;
+        }
+        h.fix_states(&out.at_split);
+        Some((v, h, out.at_split))
+    }
+}
+
 fn fit_states(
     ctx: &Ctx<'_>,
     mut train: Hypothesis,
@@ -426,19 +604,7 @@ fn fit_states(
     }
     let s = out.at_split;
     train.fix_states(&s);
-    let r = (search.report)(&s, &ctx.config.acceptance);
-    Some(Fitted {
-        cause,
-        hypothesis: train,
-        parameters: r.parameters,
-        side: r.side,
-        size: r.size,
-        z: r.z,
-        practical: r.practical,
-        at_edge: false,
-        beyond_physics: (search.beyond)(&s),
-        states: Some(s),
-    })
+    Some(state_fitted(ctx, cause, search, train, s))
 }
 
 fn fit_scalar(ctx: &Ctx<'_>, train: Hypothesis, cause: Cause, search: &ScalarSearch) -> Fitted {
@@ -467,6 +633,7 @@ fn fit_scalar(ctx: &Ctx<'_>, train: Hypothesis, cause: Cause, search: &ScalarSea
         at_edge: near_edge(v, lo, hi),
         beyond_physics,
         states: Some(out.at_split),
+        companion: None,
     }
 }
 
@@ -502,6 +669,7 @@ fn fit_plane(ctx: &Ctx<'_>, train: Hypothesis, cause: Cause, search: &PlaneSearc
         at_edge: on_edge,
         beyond_physics: on_edge.then_some(OUTSIDE_HULL),
         states: Some(out.at_split),
+        companion: None,
     }
 }
 
@@ -564,14 +732,23 @@ fn score_round(
     accepted: &Hypothesis,
     remaining: &[Cause],
 ) -> Vec<(Fitted, PassOut)> {
-    let try_one = |cause: Cause| -> Option<(Fitted, PassOut)> {
-        let f = fit(ctx, accepted, cause)?;
-        let out = ctx.pass(&f.hypothesis, false, true);
-        (!out.failed).then_some((f, out))
+    let try_one = |cause: Cause| -> Vec<(Fitted, PassOut)> {
+        let Some(f) = fit(ctx, accepted, cause) else {
+            return Vec::new();
+        };
+        let joint = fit_with_shared(ctx, accepted, &f);
+        [Some(f), joint]
+            .into_iter()
+            .flatten()
+            .filter_map(|f| {
+                let out = ctx.pass(&f.hypothesis, false, true);
+                (!out.failed).then_some((f, out))
+            })
+            .collect()
     };
     let threads = ctx.config.threads.clamp(1, remaining.len().max(1));
     if threads == 1 {
-        return remaining.iter().filter_map(|c| try_one(*c)).collect();
+        return remaining.iter().flat_map(|c| try_one(*c)).collect();
     }
     let next = std::sync::atomic::AtomicUsize::new(0);
     let results = std::sync::Mutex::new(Vec::new());
@@ -581,16 +758,16 @@ fn score_round(
                 loop {
                     let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                     let Some(cause) = remaining.get(i) else { break };
-                    if let Some(r) = try_one(*cause)
-                        && let Ok(mut v) = results.lock()
-                    {
-                        v.push((i, r));
+                    let r = try_one(*cause);
+                    if let Ok(mut v) = results.lock() {
+                        v.extend(r.into_iter().map(|r| (i, r)));
                     }
                 }
             });
         }
     });
     let mut v = results.into_inner().unwrap_or_default();
+    // Stable: a cause's own fit stays before its joint one.
     v.sort_by_key(|(i, _)| *i);
     v.into_iter().map(|(_, r)| r).collect()
 }
@@ -603,10 +780,27 @@ fn missed_bar(
     forecast_m: Forecasts,
     acc: &Acceptance,
 ) -> Option<String> {
+    let companion_misses = f.companion.as_ref().and_then(|c| {
+        let missed = c.beyond_physics.map(str::to_string).or_else(|| {
+            (c.at_edge || c.z < acc.min_z || c.size < c.practical).then(|| {
+                format!(
+                    "its size {:.3} ({:.1} standard deviations) is not determined",
+                    c.size, c.z
+                )
+            })
+        });
+        missed.map(|m| format!("{} {m}", c.cause.name()))
+    });
+    let judged_on_forecast = f.cause.spec().must_improve_forecast
+        || f.companion
+            .as_ref()
+            .is_some_and(|c| c.cause.spec().must_improve_forecast);
     if let Some(why) = f.beyond_physics {
         Some(why.to_string())
+    } else if let Some(why) = companion_misses {
+        Some(why)
     } else if let Some(worse) = forecast_m.worse()
-        && f.cause.spec().must_improve_forecast
+        && judged_on_forecast
     {
         Some(format!(
             "{worse}, which a change of the vessel's dynamics would improve: it absorbs a force the catalogue has no cause for"
@@ -713,7 +907,7 @@ fn choose(mut scored: Vec<(Fitted, PassOut)>, current: &PassOut, acc: &Acceptanc
     let taken = clearing().next().map(|best| {
         clearing()
             .filter(|i| judged[*i].0 >= judged[best].0 - acc.min_gain_nll)
-            .min_by_key(|i| (scored[*i].0.cause.parameter_count(), *i))
+            .min_by_key(|i| (scored[*i].0.parameter_count(), *i))
             .unwrap_or(best)
     });
     let taken_by = taken.map(|i| (scored[i].0.cause.name(), judged[i].0));
@@ -726,6 +920,10 @@ fn choose(mut scored: Vec<(Fitted, PassOut)>, current: &PassOut, acc: &Acceptanc
             round.took = Some((f, out, gain));
             continue;
         }
+        let joint = f
+            .companion
+            .as_ref()
+            .map(|c| format!("with {} for the part both share: ", c.cause.name()));
         let reason = reason.unwrap_or_else(|| match taken_by {
             Some((name, taken_gain)) if gain > taken_gain => format!(
                 "{name} explains the data as well (a held-out gain within {}) with fewer parameters",
@@ -737,7 +935,7 @@ fn choose(mut scored: Vec<(Fitted, PassOut)>, current: &PassOut, acc: &Acceptanc
             cause: f.cause,
             parameters: f.parameters.clone(),
             heldout_nll_gain: gain,
-            reason,
+            reason: joint.map_or(reason.clone(), |j| j + &reason),
         });
     }
     round
@@ -754,6 +952,25 @@ fn finding(f: &Fitted, out: &PassOut, gain: f64, before_out: &PassOut) -> Findin
         evidence: evidence(&before, &after),
         gain: gain_of(gain, before_out, &before, out, &after),
     }
+}
+
+/// The findings of a taken candidate: its own, and its companion's where
+/// it has one (named first: the part it takes is the cause's baseline).
+fn findings_of(f: &Fitted, out: &PassOut, gain: f64, before_out: &PassOut) -> Vec<Finding> {
+    let mut named = Vec::new();
+    if let Some(c) = &f.companion {
+        let mut found = finding(c, out, gain, before_out);
+        found.evidence.insert(
+            0,
+            format!(
+                "fitted with the {} for the part both propellers would otherwise share",
+                f.cause.name()
+            ),
+        );
+        named.push(found);
+    }
+    named.push(finding(f, out, gain, before_out));
+    named
 }
 
 /// The gain of going from `before_out` (residuals `before`) to `out`
@@ -974,12 +1191,22 @@ fn refit_jointly(
                 continue;
             }
         };
-        findings[i] = finding(&f, &out, gain, &base_out);
+        let mut named = findings_of(&f, &out, gain, &base_out);
+        findings[i] = named
+            .pop()
+            .unwrap_or_else(|| finding(&f, &out, gain, &base_out));
         if let Some(states) = &f.states {
             for (j, other) in findings.iter_mut().enumerate() {
                 if j != i {
                     refresh_state_findings(std::slice::from_mut(other), states, acc);
                 }
+            }
+        }
+        for companion in named {
+            if findings.iter().all(|g| g.cause != companion.cause) {
+                rejected.retain(|r| r.cause != companion.cause);
+                findings.push(companion);
+                changed = true;
             }
         }
         model.hypothesis = f.hypothesis;
@@ -1022,14 +1249,17 @@ fn replaces(f: &Fitted, out: &PassOut, old: Cause, model_out: &PassOut, acc: &Ac
 }
 
 /// A state finding's shared part ([`SharedPart`], declared in the
-/// catalogue) named as the cause that moves the vessel alike: that cause
-/// is fitted on top of the model, with the finding's states free, and
-/// taken where it leaves the part below the finding's practical size,
-/// clears its own size bars, and neither the held-out likelihood nor the
-/// forecast gets worse. The likelihood-gain bar is not asked of it: both
-/// explain the same steady motion, the held-out data cannot prefer one by
-/// much, and what tells them apart (the hull's time constant) is read by
-/// the fit on the training part.
+/// catalogue) named as the cause that moves the vessel alike. Where that
+/// cause is not yet named, it is fitted on top of the model with the
+/// finding's states free, and taken where it clears its own size bars and
+/// neither the held-out likelihood nor the forecast gets worse (the
+/// likelihood-gain bar is not asked of it: both explain the same steady
+/// motion, the held-out data cannot prefer one by much, and what tells
+/// them apart, the hull's time constant, is read by the fit on the
+/// training part). Where it is named already, or its fit still leaves a
+/// shared part, it moves along the ridge to the point that shares none
+/// ([`Ridge::where_none_is_shared`]), if the held-out likelihood there is within
+/// `min_gain_nll` and the forecast holds.
 fn name_shared_parts(
     ctx: &Ctx<'_>,
     model: &mut Accepted,
@@ -1037,54 +1267,119 @@ fn name_shared_parts(
     rejected: &mut Vec<Rejected>,
 ) {
     let acc = &ctx.config.acceptance;
-    let mut i = 0;
-    while i < findings.len() && findings.len() < ctx.config.max_findings {
+    for i in 0..findings.len() {
         let Search::States(search) = &findings[i].cause.spec().search else {
-            i += 1;
             continue;
         };
-        i += 1;
         let Some(shared) = &search.shared else {
+            continue;
+        };
+        let Search::Scalar(scalar) = &shared.cause.spec().search else {
             continue;
         };
         let states = model.out.at_split;
         let before = (shared.size)(&states);
         let practical = (search.report)(&states, acc).practical;
-        if before.abs() < practical || findings.iter().any(|f| f.cause == shared.cause) {
+        let named = findings.iter().position(|f| f.cause == shared.cause);
+        if before.abs() < practical
+            || (named.is_none() && findings.len() >= ctx.config.max_findings)
+        {
             continue;
         }
-        let Some(f) = fit(ctx, &model.hypothesis, shared.cause) else {
+        // The companion's maximum, with the finding's states free.
+        let (v_ml, sd) = match named {
+            Some(j) => (findings[j].parameters[0].1, findings[j].parameters[0].2),
+            None => {
+                let Some(f) = fit(ctx, &model.hypothesis, shared.cause) else {
+                    continue;
+                };
+                (f.parameters[0].1, f.parameters[0].2)
+            }
+        };
+        let (v_ml, sd) = (scalar_value(scalar, v_ml), scalar_value(scalar, sd));
+        let train = model.hypothesis.with_states_free();
+        let Some((v, hypothesis, after_states)) = Ridge {
+            ctx,
+            train,
+            scalar,
+            shared,
+        }
+        .at_or_off(v_ml, sd, practical) else {
             continue;
         };
-        let Some(after_states) = f.states else {
-            continue;
+        let out = ctx.pass(&hypothesis, false, true);
+        let allowed_nll = if named.is_some() {
+            acc.min_gain_nll
+        } else {
+            0.0
         };
-        let after = (shared.size)(&after_states);
-        let out = ctx.pass(&f.hypothesis, false, true);
-        let forecast_holds = forecast_holds(&model.out, &out);
-        let clears =
-            f.beyond_physics.is_none() && !f.at_edge && f.z >= acc.min_z && f.size >= f.practical;
+        let (lo, hi) = scalar.bounds;
+        let size = (v - scalar.neutral).abs();
+        let clears = !near_edge(v, lo, hi)
+            && size / sd.max(1e-12) >= acc.min_z
+            && size >= (scalar.practical)(acc);
         if out.failed
-            || after.abs() >= practical
-            || out.nll_test > model.out.nll_test
-            || !forecast_holds
+            || out.nll_test > model.out.nll_test + allowed_nll
+            || !forecast_holds(&model.out, &out)
             || !clears
         {
             continue;
         }
-        let mut named = finding(&f, &out, model.out.nll_test - out.nll_test, &model.out);
-        named.evidence.insert(
-            0,
-            format!(
-                "takes {} ({before:.3} -> {after:.3}): the same steady motion, told apart by the hull's time constant",
-                shared.what
-            ),
-        );
+        let line = shared_part_line(shared, before, &after_states, v == v_ml, acc);
+        let parameters = vec![(scalar.parameter, (scalar.shown)(v), (scalar.shown)(sd))];
+        match named {
+            Some(j) => {
+                findings[j].parameters = parameters;
+                findings[j].evidence.insert(0, line);
+            }
+            None => {
+                let before_out = std::mem::take(&mut model.out);
+                let mut found = Finding {
+                    cause: shared.cause,
+                    parameters,
+                    side: None,
+                    evidence: Vec::new(),
+                    gain: gain_of(
+                        before_out.nll_test - out.nll_test,
+                        &before_out,
+                        &summarise(&before_out.records),
+                        &out,
+                        &summarise(&out.records),
+                    ),
+                };
+                found.evidence.push(line);
+                rejected.retain(|r| r.cause != shared.cause);
+                findings.push(found);
+            }
+        }
         refresh_state_findings(findings, &after_states, acc);
-        rejected.retain(|r| r.cause != shared.cause);
-        findings.push(named);
-        model.hypothesis = f.hypothesis;
+        model.hypothesis = hypothesis;
         model.out = out;
+    }
+}
+
+/// The evidence line of a shared part taken from `before` to what is left
+/// in `after_states`, at the companion's maximum or moved along the ridge.
+fn shared_part_line(
+    shared: &SharedPart,
+    before: f64,
+    after_states: &AtSplit,
+    at_maximum: bool,
+    acc: &Acceptance,
+) -> String {
+    let after = (shared.size)(after_states);
+    let after = if after.abs() < 5e-4 { 0.0 } else { after };
+    if at_maximum {
+        format!(
+            "takes {} ({before:.3} -> {after:.3}): the same steady motion, told apart by the hull's time constant",
+            shared.what
+        )
+    } else {
+        format!(
+            "takes {} ({before:.3} -> {after:.3}): the same steady motion, which the data do not tell apart \
+             (training log-likelihood within {} of the best split); the split that leaves a loss on one propeller is named",
+            shared.what, acc.min_gain_nll
+        )
     }
 }
 
@@ -1134,13 +1429,13 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
                 .iter()
                 .any(|r| r.cause == *c && r.heldout_nll_gain < -acc.min_gain_nll)
         });
-        findings.push(finding(&f, &out, gain, &current_out));
+        let earlier = findings.len();
+        findings.extend(findings_of(&f, &out, gain, &current_out));
         if let Some(states) = &f.states {
-            let last = findings.len() - 1;
-            refresh_state_findings(&mut findings[..last], states, acc);
+            refresh_state_findings(&mut findings[..earlier], states, acc);
             last_states = Some(*states);
         }
-        remaining.retain(|c| *c != f.cause);
+        remaining.retain(|c| *c != f.cause && f.companion.as_ref().is_none_or(|k| k.cause != *c));
         accepted = f.hypothesis;
         current_out = out;
     }
@@ -1162,6 +1457,9 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     }
     name_shared_parts(&ctx, &mut model, &mut findings, &mut rejected);
     judge_each_against_the_rest(&ctx, &model, &mut findings);
+    // A cause tried alone and with a companion can be rejected in one form
+    // and named in the other: the finding stands.
+    rejected.retain(|r| findings.iter().all(|f| f.cause != r.cause));
     let current_out = model.out;
     let extended = summarise(&current_out.records);
     Diagnosis {
@@ -1234,6 +1532,7 @@ mod tests {
             at_edge: false,
             beyond_physics: None,
             states: None,
+            companion: None,
         }
     }
 

@@ -46,11 +46,11 @@
 //!    forecasting worse, replaces it (the greedy order names first what
 //!    imitates two effects at once: a fore-aft lever arm for a latency on
 //!    a draggier hull), and one whose refit no longer clears its bars is
-//!    dropped. Last, a part of a finding that another cause imitates
-//!    exactly on steady motion (the loss both propellers share, and the
-//!    hull's resistance) goes to that cause where its fit, with the
-//!    finding's states free, takes the part away and the held-out data
-//!    and forecasts do not get worse. A cause of the vessel's dynamics
+//!    dropped. A part of a cause that another cause imitates exactly on
+//!    steady motion (the loss both propellers share, and the hull's
+//!    resistance) is fitted with that cause beside it, as a candidate of
+//!    its own in each round, and once more at the end; where the data do
+//!    not tell the two apart, the split that leaves none shared is named. A cause of the vessel's dynamics
 //!    must make the held-out forecasts better over the horizons taken
 //!    together (a steady force it only absorbs makes them worse).
 //! 6. **Report** ([`Diagnosis`]): per finding the cause, its parameters
