@@ -470,10 +470,10 @@ impl HorizonInputs {
     }
 }
 
-/// Runs the prediction comparison on the broken-port S-manoeuvre with
-/// noise seed `seed` and a horizon of `horizon_s` at the end of the run, in
-/// the scenario's harbour water or (`calm_water`) with no random disturbance.
-pub fn prediction_comparison(seed: u64, horizon_s: f64, calm_water: bool) -> PredictionComparison {
+/// The broken-port S-manoeuvre's plan and run with noise seed `seed`, in
+/// the scenario's harbour water or (`calm_water`) with no random
+/// disturbance.
+fn broken_port_run(seed: u64, calm_water: bool) -> (twin_sim::Plan, SimRun) {
     let cell = Cell {
         path: TrialPath::SManoeuvre,
         set: seed_sets(0.18)[3],
@@ -486,6 +486,29 @@ pub fn prediction_comparison(seed: u64, horizon_s: f64, calm_water: bool) -> Pre
     }
     let plan = sc.validate().expect("valid scenario");
     let run = twin_sim::run_plan(&plan);
+    (plan, run)
+}
+
+/// One sensor event into the extended twin (fixes and shaft speeds) and
+/// the seed method's (fixes).
+fn feed_both(event: &SensorEvent, kinetic: &mut VesselTwin, seed_twin: &mut VesselTwin) {
+    match event {
+        SensorEvent::Gnss(fix) => {
+            let _ = kinetic.on_gnss(fix);
+            let _ = seed_twin.on_gnss(fix);
+        }
+        SensorEvent::PropellerMeasured(p) => {
+            let _ = kinetic.on_propellers(p);
+        }
+        _ => {}
+    }
+}
+
+/// Runs the prediction comparison on the broken-port S-manoeuvre with
+/// noise seed `seed` and a horizon of `horizon_s` at the end of the run, in
+/// the scenario's harbour water or (`calm_water`) with no random disturbance.
+pub fn prediction_comparison(seed: u64, horizon_s: f64, calm_water: bool) -> PredictionComparison {
+    let (plan, run) = broken_port_run(seed, calm_water);
     let t_end = run.truth.last().map(|t| t.time_s).unwrap_or(0.0);
     let t_split = t_end - horizon_s;
 
@@ -493,16 +516,7 @@ pub fn prediction_comparison(seed: u64, horizon_s: f64, calm_water: bool) -> Pre
     let mut kinetic = VesselTwin::new(trials_twin()).expect("valid config");
     let mut seed_twin = VesselTwin::new(TwinConfig::default()).expect("valid config");
     for event in run.events.iter().filter(|e| e.time_s() <= t_split) {
-        match event {
-            SensorEvent::Gnss(fix) => {
-                let _ = kinetic.on_gnss(fix);
-                let _ = seed_twin.on_gnss(fix);
-            }
-            SensorEvent::PropellerMeasured(p) => {
-                let _ = kinetic.on_propellers(p);
-            }
-            _ => {}
-        }
+        feed_both(event, &mut kinetic, &mut seed_twin);
     }
     let t_start = seed_twin
         .state_report()
@@ -579,6 +593,57 @@ pub fn prediction_comparison(seed: u64, horizon_s: f64, calm_water: bool) -> Pre
         extended_held_rmse,
         replay_rmse,
     }
+}
+
+/// The live forecasts (`VesselTwin::forecast`: each twin's input held at
+/// its last value, as `twin/prediction` publishes them) of the broken-port
+/// S-manoeuvre from many splits of one run: one every `every_s` from
+/// `first_s` to the run's end less `horizon_s`, each twin calibrated on
+/// the data before it. Returns the sums of the squared horizontal position
+/// errors over the forecast points, `[seed method, extended twin]`, how
+/// many points each sum holds, and how many forecasts were started.
+pub fn live_forecast_errors(
+    seed: u64,
+    horizon_s: f64,
+    calm_water: bool,
+    first_s: f64,
+    every_s: f64,
+) -> ([f64; 2], usize, usize) {
+    let (_, run) = broken_port_run(seed, calm_water);
+    let t_first = run.truth.first().map(|t| t.time_s).unwrap_or(0.0);
+    let t_end = run.truth.last().map(|t| t.time_s).unwrap_or(0.0);
+    let sim_frame = LocalFrame::new(run.origin).expect("valid origin");
+    let mut kinetic = VesselTwin::new(trials_twin()).expect("valid config");
+    let mut seed_twin = VesselTwin::new(TwinConfig::default()).expect("valid config");
+    let (mut sq, mut n) = ([0.0; 2], [0usize; 2]);
+    let mut score = |twin: &VesselTwin, k: usize| {
+        for p in twin.forecast(horizon_s, 0.2) {
+            let i = run.truth.partition_point(|t| t.time_s < p.time_s - 1e-3);
+            let Some(tr) = run
+                .truth
+                .get(i)
+                .filter(|t| (t.time_s - p.time_s).abs() < 1e-3)
+            else {
+                continue;
+            };
+            let local = sim_frame.to_local(p.position);
+            sq[k] += (local.north_m - tr.north_m).powi(2) + (local.east_m - tr.east_m).powi(2);
+            n[k] += 1;
+        }
+    };
+    // Times are the run's clock (Unix seconds); splits count from its start.
+    let mut next_split_s = t_first + first_s;
+    let mut splits = 0;
+    for event in &run.events {
+        while event.time_s() > next_split_s && next_split_s + horizon_s <= t_end {
+            score(&seed_twin, 0);
+            score(&kinetic, 1);
+            splits += 1;
+            next_split_s += every_s;
+        }
+        feed_both(event, &mut kinetic, &mut seed_twin);
+    }
+    (sq, n[0].min(n[1]), splits)
 }
 
 /// RMSE of forecast `points` (`[time s, north m, east m, speed m/s, course
@@ -888,5 +953,38 @@ pub fn prediction_markdown(seeds: u64) -> String {
             "| {water} | {horizon:.0} s | {s:.2} | {e:.2} | {r:.2} | {sh:.2} | {eh:.2} |"
         );
     }
+    let _ = writeln!(out);
+    let _ = writeln!(
+        out,
+        "| water | horizon | forecasts (splits every {LIVE_EVERY_S:.0} s from {LIVE_FIRST_S:.0} s) | seed method, input held | extended twin, shaft speeds held (live) |"
+    );
+    let _ = writeln!(out, "|---|---|---:|---:|---:|");
+    for calm in [true, false] {
+        for horizon in [10.0, 30.0, 60.0] {
+            let (mut sq, mut points, mut splits) = ([0.0; 2], 0, 0);
+            for seed in 0..seeds {
+                let (s, n, k) =
+                    live_forecast_errors(1000 + seed, horizon, calm, LIVE_FIRST_S, LIVE_EVERY_S);
+                sq[0] += s[0];
+                sq[1] += s[1];
+                points += n;
+                splits += k;
+            }
+            let rmse = |s: f64| (s / points.max(1) as f64).sqrt();
+            let _ = writeln!(
+                out,
+                "| {} | {horizon:.0} s | {splits} | {:.2} | {:.2} |",
+                if calm { "calm" } else { "harbour" },
+                rmse(sq[0]),
+                rmse(sq[1])
+            );
+        }
+    }
     out
 }
+
+/// The first split of the live forecasts' table, s: the twins have a
+/// minute of the manoeuvre, with its turns, behind them.
+const LIVE_FIRST_S: f64 = 40.0;
+/// How often a live forecast starts in that table, s.
+const LIVE_EVERY_S: f64 = 5.0;

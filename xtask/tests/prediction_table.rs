@@ -13,7 +13,8 @@
 //! extended twin's. Its bands widen accordingly.
 
 use xtask::trials::{
-    Cell, TrialPath, forecast_coverage, loss_sets, prediction_comparison, seed_sets,
+    Cell, TrialPath, forecast_coverage, live_forecast_errors, loss_sets, prediction_comparison,
+    seed_sets,
 };
 
 /// The forecast's 1-sigma band holds the truth 60-75 % of the time and the
@@ -101,6 +102,37 @@ fn prediction_after_calibration_against_the_seed_method() {
             if calm && horizon == 60.0 {
                 assert!(ext_rmse[0] < 0.5 * seed_rmse[0] && ext_rmse[1] < 0.5 * seed_rmse[1]);
             }
+        }
+    }
+}
+
+/// The live forecasts, as `twin/prediction` publishes them (each twin's
+/// input held at the split), over many splits of the broken-port
+/// S-manoeuvre (every 5 s from 40 s, three noise seeds): the extended
+/// twin's horizontal position error is no larger than the seed method's at
+/// any horizon, in calm and in harbour water.
+#[test]
+fn the_live_forecast_is_at_least_as_good_as_the_seed_methods_at_every_horizon() {
+    for calm in [true, false] {
+        for horizon in [10.0, 30.0, 60.0] {
+            let (mut sq, mut points, mut splits) = ([0.0; 2], 0, 0);
+            for seed in [1000, 1001, 1002] {
+                let (s, n, k) = live_forecast_errors(seed, horizon, calm, 40.0, 5.0);
+                sq[0] += s[0];
+                sq[1] += s[1];
+                points += n;
+                splits += k;
+            }
+            let [seed_m, twin_m] = sq.map(|s| (s / points as f64).sqrt());
+            let water = if calm { "calm" } else { "harbour" };
+            println!(
+                "{water} water, {horizon} s, {splits} live forecasts: position RMSE seed method {seed_m:.2} m, extended twin {twin_m:.2} m"
+            );
+            assert!(splits >= 15 && points > 0, "{splits} forecasts");
+            assert!(
+                twin_m <= seed_m,
+                "{water}, {horizon} s: {twin_m} vs {seed_m}"
+            );
         }
     }
 }
