@@ -599,16 +599,14 @@ pub fn prediction_comparison(seed: u64, horizon_s: f64, calm_water: bool) -> Pre
 /// its last value, as `twin/prediction` publishes them) of the broken-port
 /// S-manoeuvre from many splits of one run: one every `every_s` from
 /// `first_s` to the run's end less `horizon_s`, each twin calibrated on
-/// the data before it. Returns the sums of the squared horizontal position
-/// errors over the forecast points, `[seed method, extended twin]`, how
-/// many points each sum holds, and how many forecasts were started.
-pub fn live_forecast_errors(
+/// the data before it.
+fn live_forecast_errors(
     seed: u64,
     horizon_s: f64,
     calm_water: bool,
     first_s: f64,
     every_s: f64,
-) -> ([f64; 2], usize, usize) {
+) -> LiveForecastErrors {
     let (_, run) = broken_port_run(seed, calm_water);
     let t_first = run.truth.first().map(|t| t.time_s).unwrap_or(0.0);
     let t_end = run.truth.last().map(|t| t.time_s).unwrap_or(0.0);
@@ -643,7 +641,41 @@ pub fn live_forecast_errors(
         }
         feed_both(event, &mut kinetic, &mut seed_twin);
     }
-    (sq, n[0].min(n[1]), splits)
+    LiveForecastErrors {
+        sum_sq_m2: sq,
+        points: n,
+        forecasts: splits,
+    }
+}
+
+/// The horizontal position errors of live forecasts, `[seed method,
+/// extended twin]`.
+#[derive(Debug, Clone, Copy, Default)]
+struct LiveForecastErrors {
+    /// Sums of the squared errors over the forecast points, m^2.
+    sum_sq_m2: [f64; 2],
+    /// How many points each sum holds.
+    points: [usize; 2],
+    /// How many forecasts were started.
+    forecasts: usize,
+}
+
+/// The live forecasts' horizontal position RMSE, `[seed method, extended
+/// twin]` in m, over noise seeds `seeds` (splits every [`LIVE_EVERY_S`]
+/// from [`LIVE_FIRST_S`], see [`live_forecast_errors`]), and how many
+/// forecasts that is.
+pub fn live_forecast_rmse(seeds: &[u64], horizon_s: f64, calm_water: bool) -> ([f64; 2], usize) {
+    let mut all = LiveForecastErrors::default();
+    for &seed in seeds {
+        let e = live_forecast_errors(seed, horizon_s, calm_water, LIVE_FIRST_S, LIVE_EVERY_S);
+        for k in 0..2 {
+            all.sum_sq_m2[k] += e.sum_sq_m2[k];
+            all.points[k] += e.points[k];
+        }
+        all.forecasts += e.forecasts;
+    }
+    let rmse = std::array::from_fn(|k| (all.sum_sq_m2[k] / all.points[k].max(1) as f64).sqrt());
+    (rmse, all.forecasts)
 }
 
 /// RMSE of forecast `points` (`[time s, north m, east m, speed m/s, course
@@ -961,22 +993,12 @@ pub fn prediction_markdown(seeds: u64) -> String {
     let _ = writeln!(out, "|---|---|---:|---:|---:|");
     for calm in [true, false] {
         for horizon in [10.0, 30.0, 60.0] {
-            let (mut sq, mut points, mut splits) = ([0.0; 2], 0, 0);
-            for seed in 0..seeds {
-                let (s, n, k) =
-                    live_forecast_errors(1000 + seed, horizon, calm, LIVE_FIRST_S, LIVE_EVERY_S);
-                sq[0] += s[0];
-                sq[1] += s[1];
-                points += n;
-                splits += k;
-            }
-            let rmse = |s: f64| (s / points.max(1) as f64).sqrt();
+            let noise_seeds: Vec<u64> = (0..seeds).map(|k| 1000 + k).collect();
+            let ([seed_m, twin_m], forecasts) = live_forecast_rmse(&noise_seeds, horizon, calm);
             let _ = writeln!(
                 out,
-                "| {} | {horizon:.0} s | {splits} | {:.2} | {:.2} |",
+                "| {} | {horizon:.0} s | {forecasts} | {seed_m:.2} | {twin_m:.2} |",
                 if calm { "calm" } else { "harbour" },
-                rmse(sq[0]),
-                rmse(sq[1])
             );
         }
     }

@@ -29,6 +29,16 @@ fn scenario(file: &str) -> Scenario {
     Scenario::from_toml_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
+/// The base trial on a hull with its surge damping times `scale`.
+fn base_on_hull(scale: f64) -> Scenario {
+    let mut sc = scenario("diagnose_base.toml");
+    sc.vessel = Some(VesselSpec {
+        surge_damping_scale: scale,
+        ..VesselSpec::default()
+    });
+    sc
+}
+
 fn causes(r: &DiagnoseReport) -> Vec<&str> {
     r.findings.iter().map(|f| f.cause.as_str()).collect()
 }
@@ -61,11 +71,7 @@ fn no_false_cause(r: &DiagnoseReport) {
 
 #[test]
 fn a_fouled_hull_is_named_as_surge_damping_not_as_propeller_losses() {
-    let mut sc = scenario("diagnose_base.toml");
-    sc.vessel = Some(VesselSpec {
-        surge_damping_scale: 1.4,
-        ..VesselSpec::default()
-    });
+    let sc = base_on_hull(1.4);
     let r = diagnose_scenario(&sc, "fouled.jsonl");
     no_false_cause(&r);
     let scale = scale_of(&r, "surge_damping").unwrap_or_else(|| {
@@ -136,11 +142,7 @@ fn parameter(r: &DiagnoseReport, cause: &str, name: &str) -> Option<f64> {
 /// side alone (port within 0.03 of none), within 20 %, and the hull's
 /// change named as `surge_damping` within 30 %, nothing else.
 fn a_one_sided_loss_on_a_changed_hull(surge_scale: f64, loss: f64, name: &str) {
-    let mut sc = scenario("diagnose_base.toml");
-    sc.vessel = Some(VesselSpec {
-        surge_damping_scale: surge_scale,
-        ..VesselSpec::default()
-    });
+    let mut sc = base_on_hull(surge_scale);
     sc.propellers.starboard.loss = loss;
     let r = diagnose_scenario(&sc, name);
     let mut named = causes(&r);
@@ -189,11 +191,7 @@ fn a_one_sided_loss_on_a_less_draggy_hull_is_named_as_the_loss_and_the_hull() {
 /// model, the latency explains the same with fewer parameters.
 #[test]
 fn a_latency_on_a_draggier_hull_is_named_as_a_latency_not_a_lever_arm() {
-    let mut sc = scenario("diagnose_base.toml");
-    sc.vessel = Some(VesselSpec {
-        surge_damping_scale: 1.25,
-        ..VesselSpec::default()
-    });
+    let mut sc = base_on_hull(1.25);
     // The simulator stamps a fix with its true time minus `latency_s`.
     sc.sensors.gnss.latency_s = -0.9;
     let r = diagnose_scenario(&sc, "latency-on-fouled.jsonl");

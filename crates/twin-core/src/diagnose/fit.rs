@@ -367,6 +367,17 @@ struct Fitted {
 }
 
 impl Fitted {
+    /// Why its size does not clear the bars (at the edge of its search, too
+    /// few standard deviations, below the practical size), if it does not.
+    fn size_bar_missed(&self, acc: &Acceptance) -> Option<String> {
+        (self.at_edge || self.z < acc.min_z || self.size < self.practical).then(|| {
+            format!(
+                "its size {:.3} ({:.1} standard deviations) is not determined",
+                self.size, self.z
+            )
+        })
+    }
+
     /// How many parameters the candidate fits, with its companion's.
     fn parameter_count(&self) -> usize {
         self.cause.parameter_count() + self.companion.as_ref().map_or(0, |c| c.parameter_count())
@@ -440,39 +451,98 @@ fn fit_with_shared(ctx: &Ctx<'_>, accepted: &Hypothesis, alone: &Fitted) -> Opti
     if (shared.size)(&states).abs() < practical || without(accepted, shared.cause) != *accepted {
         return None;
     }
-    let mut train = accepted.with_states_free();
-    (search.free)(&mut train);
+    let placed = place_companion(ctx, accepted, search, shared, practical, None)?;
+    let joint = placed.states;
+    let hypothesis = placed.hypothesis;
+    Some(Fitted {
+        companion: Some(Box::new(placed.fitted(ctx, shared))),
+        ..state_fitted(ctx, alone.cause, search, hypothesis, joint)
+    })
+}
+
+/// A shared part's companion placed by [`place_companion`].
+struct Placed {
+    /// Its value and standard deviation, in the hypothesis' unit.
+    value: f64,
+    sd: f64,
+    /// Whether it is at its training maximum (else moved along the ridge).
+    at_maximum: bool,
+    /// The hypothesis with the companion there and the states fixed.
+    hypothesis: Hypothesis,
+    /// The states there.
+    states: AtSplit,
+}
+
+impl Placed {
+    /// The companion as a candidate of its own (for its size bars and its
+    /// finding).
+    fn fitted(&self, ctx: &Ctx<'_>, shared: &SharedPart) -> Fitted {
+        let Search::Scalar(scalar) = &shared.cause.spec().search else {
+            unreachable!("a companion is a scalar cause (place_companion)");
+        };
+        let (lo, hi) = scalar.bounds;
+        let size = (self.value - scalar.neutral).abs();
+        Fitted {
+            cause: shared.cause,
+            hypothesis: self.hypothesis,
+            parameters: vec![(
+                scalar.parameter,
+                (scalar.shown)(self.value),
+                (scalar.shown)(self.sd),
+            )],
+            side: None,
+            size,
+            z: size / self.sd.max(1e-12),
+            practical: (scalar.practical)(&ctx.config.acceptance),
+            at_edge: near_edge(self.value, lo, hi),
+            beyond_physics: None,
+            states: None,
+            companion: None,
+        }
+    }
+}
+
+/// The companion of a state cause's shared part, fitted on `accepted` with
+/// the states free: from `from` (its value and standard deviation where
+/// it is named already), else from its training maximum; kept there where
+/// that leaves the part below `practical`, else moved along the ridge to
+/// the point that shares none ([`Ridge::where_none_is_shared`]). `None`
+/// where the companion is not a scalar cause or the ridge has no such
+/// point the data accept.
+fn place_companion(
+    ctx: &Ctx<'_>,
+    accepted: &Hypothesis,
+    search: &StateSearch,
+    shared: &'static SharedPart,
+    practical: f64,
+    from: Option<(f64, f64)>,
+) -> Option<Placed> {
     let Search::Scalar(scalar) = &shared.cause.spec().search else {
         return None;
     };
-    let ml = fit_scalar(ctx, train, shared.cause, scalar);
-    let v_ml = scalar_value(scalar, ml.parameters[0].1);
-    let sd = scalar_value(scalar, ml.parameters[0].2);
-    // Nearly flat along the ridge: where the maximum still shares a part,
-    // the point on it that shares none.
-    let (at, hypothesis, joint) = Ridge {
+    let mut train = accepted.with_states_free();
+    (search.free)(&mut train);
+    let (v_ml, sd) = match from {
+        Some(named) => named,
+        None => {
+            let ml = fit_scalar(ctx, train, shared.cause, scalar);
+            (ml.parameters[0].1, ml.parameters[0].2)
+        }
+    };
+    let (v_ml, sd) = (scalar_value(scalar, v_ml), scalar_value(scalar, sd));
+    let ridge = Ridge {
         ctx,
         train,
         scalar,
         shared,
-    }
-    .at_or_off(v_ml, sd, practical)?;
-    let (lo, hi) = scalar.bounds;
-    let companion = Fitted {
-        hypothesis,
-        parameters: vec![(scalar.parameter, (scalar.shown)(at), (scalar.shown)(sd))],
-        size: (at - scalar.neutral).abs(),
-        z: (at - scalar.neutral).abs() / sd.max(1e-12),
-        at_edge: near_edge(at, lo, hi),
-        ..ml
     };
-    let hypothesis = companion.hypothesis;
-    Some(Fitted {
-        companion: Some(Box::new(Fitted {
-            states: None,
-            ..companion
-        })),
-        ..state_fitted(ctx, alone.cause, search, hypothesis, joint)
+    let (value, hypothesis, states) = ridge.at_or_off(v_ml, sd, practical)?;
+    Some(Placed {
+        value,
+        sd,
+        at_maximum: value == v_ml,
+        hypothesis,
+        states,
     })
 }
 
@@ -781,14 +851,10 @@ fn missed_bar(
     acc: &Acceptance,
 ) -> Option<String> {
     let companion_misses = f.companion.as_ref().and_then(|c| {
-        let missed = c.beyond_physics.map(str::to_string).or_else(|| {
-            (c.at_edge || c.z < acc.min_z || c.size < c.practical).then(|| {
-                format!(
-                    "its size {:.3} ({:.1} standard deviations) is not determined",
-                    c.size, c.z
-                )
-            })
-        });
+        let missed = c
+            .beyond_physics
+            .map(str::to_string)
+            .or_else(|| c.size_bar_missed(acc));
         missed.map(|m| format!("{} {m}", c.cause.name()))
     });
     let judged_on_forecast = f.cause.spec().must_improve_forecast
@@ -955,10 +1021,14 @@ fn finding(f: &Fitted, out: &PassOut, gain: f64, before_out: &PassOut) -> Findin
 }
 
 /// The findings of a taken candidate: its own, and its companion's where
-/// it has one (named first: the part it takes is the cause's baseline).
-fn findings_of(f: &Fitted, out: &PassOut, gain: f64, before_out: &PassOut) -> Vec<Finding> {
-    let mut named = Vec::new();
-    if let Some(c) = &f.companion {
+/// it has one.
+fn findings_of(
+    f: &Fitted,
+    out: &PassOut,
+    gain: f64,
+    before_out: &PassOut,
+) -> (Finding, Option<Finding>) {
+    let companion = f.companion.as_ref().map(|c| {
         let mut found = finding(c, out, gain, before_out);
         found.evidence.insert(
             0,
@@ -967,10 +1037,9 @@ fn findings_of(f: &Fitted, out: &PassOut, gain: f64, before_out: &PassOut) -> Ve
                 f.cause.name()
             ),
         );
-        named.push(found);
-    }
-    named.push(finding(f, out, gain, before_out));
-    named
+        found
+    });
+    (finding(f, out, gain, before_out), companion)
 }
 
 /// The gain of going from `before_out` (residuals `before`) to `out`
@@ -1151,7 +1220,6 @@ fn refit_jointly(
         let own = choose(own, &base_out, acc);
         let (f, out, gain) = match (replacement, own.took) {
             (Some(r), _) => {
-                rejected.retain(|x| x.cause != r.0.cause);
                 rejected.push(Rejected {
                     cause: old,
                     parameters: findings[i].parameters.clone(),
@@ -1191,10 +1259,8 @@ fn refit_jointly(
                 continue;
             }
         };
-        let mut named = findings_of(&f, &out, gain, &base_out);
-        findings[i] = named
-            .pop()
-            .unwrap_or_else(|| finding(&f, &out, gain, &base_out));
+        let (own, companion) = findings_of(&f, &out, gain, &base_out);
+        findings[i] = own;
         if let Some(states) = &f.states {
             for (j, other) in findings.iter_mut().enumerate() {
                 if j != i {
@@ -1202,12 +1268,11 @@ fn refit_jointly(
                 }
             }
         }
-        for companion in named {
-            if findings.iter().all(|g| g.cause != companion.cause) {
-                rejected.retain(|r| r.cause != companion.cause);
-                findings.push(companion);
-                changed = true;
-            }
+        if let Some(companion) = companion
+            && findings.iter().all(|g| g.cause != companion.cause)
+        {
+            findings.push(companion);
+            changed = true;
         }
         model.hypothesis = f.hypothesis;
         model.out = out;
@@ -1260,21 +1325,13 @@ fn replaces(f: &Fitted, out: &PassOut, old: Cause, model_out: &PassOut, acc: &Ac
 /// shared part, it moves along the ridge to the point that shares none
 /// ([`Ridge::where_none_is_shared`]), if the held-out likelihood there is within
 /// `min_gain_nll` and the forecast holds.
-fn name_shared_parts(
-    ctx: &Ctx<'_>,
-    model: &mut Accepted,
-    findings: &mut Vec<Finding>,
-    rejected: &mut Vec<Rejected>,
-) {
+fn name_shared_parts(ctx: &Ctx<'_>, model: &mut Accepted, findings: &mut Vec<Finding>) {
     let acc = &ctx.config.acceptance;
     for i in 0..findings.len() {
         let Search::States(search) = &findings[i].cause.spec().search else {
             continue;
         };
         let Some(shared) = &search.shared else {
-            continue;
-        };
-        let Search::Scalar(scalar) = &shared.cause.spec().search else {
             continue;
         };
         let states = model.out.at_split;
@@ -1286,74 +1343,44 @@ fn name_shared_parts(
         {
             continue;
         }
-        // The companion's maximum, with the finding's states free.
-        let (v_ml, sd) = match named {
-            Some(j) => (findings[j].parameters[0].1, findings[j].parameters[0].2),
-            None => {
-                let Some(f) = fit(ctx, &model.hypothesis, shared.cause) else {
-                    continue;
-                };
-                (f.parameters[0].1, f.parameters[0].2)
-            }
-        };
-        let (v_ml, sd) = (scalar_value(scalar, v_ml), scalar_value(scalar, sd));
-        let train = model.hypothesis.with_states_free();
-        let Some((v, hypothesis, after_states)) = Ridge {
-            ctx,
-            train,
-            scalar,
-            shared,
-        }
-        .at_or_off(v_ml, sd, practical) else {
+        let from = named.map(|j| (findings[j].parameters[0].1, findings[j].parameters[0].2));
+        let Some(placed) = place_companion(ctx, &model.hypothesis, search, shared, practical, from)
+        else {
             continue;
         };
-        let out = ctx.pass(&hypothesis, false, true);
+        let out = ctx.pass(&placed.hypothesis, false, true);
         let allowed_nll = if named.is_some() {
             acc.min_gain_nll
         } else {
             0.0
         };
-        let (lo, hi) = scalar.bounds;
-        let size = (v - scalar.neutral).abs();
-        let clears = !near_edge(v, lo, hi)
-            && size / sd.max(1e-12) >= acc.min_z
-            && size >= (scalar.practical)(acc);
+        let companion = placed.fitted(ctx, shared);
         if out.failed
             || out.nll_test > model.out.nll_test + allowed_nll
             || !forecast_holds(&model.out, &out)
-            || !clears
+            || companion.size_bar_missed(acc).is_some()
         {
             continue;
         }
-        let line = shared_part_line(shared, before, &after_states, v == v_ml, acc);
-        let parameters = vec![(scalar.parameter, (scalar.shown)(v), (scalar.shown)(sd))];
+        let line = shared_part_line(shared, before, &placed.states, placed.at_maximum, acc);
         match named {
             Some(j) => {
-                findings[j].parameters = parameters;
+                findings[j].parameters = companion.parameters;
                 findings[j].evidence.insert(0, line);
             }
             None => {
-                let before_out = std::mem::take(&mut model.out);
-                let mut found = Finding {
-                    cause: shared.cause,
-                    parameters,
-                    side: None,
-                    evidence: Vec::new(),
-                    gain: gain_of(
-                        before_out.nll_test - out.nll_test,
-                        &before_out,
-                        &summarise(&before_out.records),
-                        &out,
-                        &summarise(&out.records),
-                    ),
-                };
-                found.evidence.push(line);
-                rejected.retain(|r| r.cause != shared.cause);
+                let mut found = finding(
+                    &companion,
+                    &out,
+                    model.out.nll_test - out.nll_test,
+                    &model.out,
+                );
+                found.evidence = vec![line];
                 findings.push(found);
             }
         }
-        refresh_state_findings(findings, &after_states, acc);
-        model.hypothesis = hypothesis;
+        refresh_state_findings(findings, &placed.states, acc);
+        model.hypothesis = placed.hypothesis;
         model.out = out;
     }
 }
@@ -1430,7 +1457,10 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
                 .any(|r| r.cause == *c && r.heldout_nll_gain < -acc.min_gain_nll)
         });
         let earlier = findings.len();
-        findings.extend(findings_of(&f, &out, gain, &current_out));
+        let (own, companion) = findings_of(&f, &out, gain, &current_out);
+        // The companion first: the part it takes is the cause's baseline.
+        findings.extend(companion);
+        findings.push(own);
         if let Some(states) = &f.states {
             refresh_state_findings(&mut findings[..earlier], states, acc);
             last_states = Some(*states);
@@ -1455,10 +1485,11 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     if refit_jointly(&ctx, &applicable, &mut model, &mut findings, &mut rejected) {
         drop_redundant(&ctx, &mut model, &mut findings, &mut rejected);
     }
-    name_shared_parts(&ctx, &mut model, &mut findings, &mut rejected);
+    name_shared_parts(&ctx, &mut model, &mut findings);
     judge_each_against_the_rest(&ctx, &model, &mut findings);
-    // A cause tried alone and with a companion can be rejected in one form
-    // and named in the other: the finding stands.
+    // A cause rejected in one round, or tried alone and with a companion,
+    // can be named in the end (in a finding's place, or as a companion):
+    // the finding stands.
     rejected.retain(|r| findings.iter().all(|f| f.cause != r.cause));
     let current_out = model.out;
     let extended = summarise(&current_out.records);
