@@ -30,6 +30,7 @@ use twin_wire::ros2::msgs::{
 };
 use twin_wire::ros2::rmw::{Attachment, gid_of};
 use twind::settings::Settings;
+use zenoh::qos::CongestionControl;
 use zenoh::sample::Sample;
 
 /// The tests of this file drive a live daemon at full speed, and their
@@ -383,13 +384,18 @@ async fn run_live(msgs: &Messages, over_ros2: bool) -> (FaultMessage, StateMessa
     let rig = rig(settings).await;
     let sub: Outputs = rig.collect("otter1").await;
     let input = &rig.input;
-    let actuators = input
-        .declare_publisher("asv/otter1/actuators")
-        .await
-        .unwrap();
-    let gnss = input.declare_publisher("asv/otter1/gnss").await.unwrap();
-    let vel = input.declare_publisher(vel_key).await.unwrap();
-    let fix = input.declare_publisher(fix_key).await.unwrap();
+    // Blocking, as a sender that must lose nothing publishes: with Zenoh's
+    // default (`Drop`) a busy daemon's back-pressure drops messages on this
+    // side, and the two paths would see different trials.
+    let declare = |key: String| {
+        input
+            .declare_publisher(key)
+            .congestion_control(CongestionControl::Block)
+    };
+    let actuators = declare("asv/otter1/actuators".to_string()).await.unwrap();
+    let gnss = declare("asv/otter1/gnss".to_string()).await.unwrap();
+    let vel = declare(vel_key).await.unwrap();
+    let fix = declare(fix_key).await.unwrap();
     for p in [&actuators, &gnss, &vel, &fix] {
         wait_matching(p, Duration::from_secs(20)).await;
     }
@@ -421,6 +427,7 @@ async fn run_live(msgs: &Messages, over_ros2: bool) -> (FaultMessage, StateMessa
     let summary = rig.stop().await;
     samples.extend(drain(&sub));
     let accepted = summary.vessels["otter1"].accepted()["gnss"];
+    assert_eq!(summary.ros2_missed, 0, "numbered in sequence, none missed");
     (
         last_fault(&samples),
         states(&samples).last().unwrap().clone(),
@@ -479,22 +486,61 @@ async fn a_navsatfix_input_gives_the_json_paths_estimates() {
     );
 }
 
+/// A daemon with the ROS 2 input on, a watch on its statistics, and
+/// publishers of `otter1`'s `fix` and `vel` that it has matched.
+struct InputRig {
+    rig: twin_tests::daemon::Rig,
+    stats: Outputs,
+    fix: zenoh::pubsub::Publisher<'static>,
+    vel: zenoh::pubsub::Publisher<'static>,
+}
+
+impl InputRig {
+    async fn new() -> Self {
+        let settings = ros2_settings("");
+        let fix_key = ros_key::<NavSatFix>(&settings, "otter1", "fix");
+        let vel_key = ros_key::<TwistStamped>(&settings, "otter1", "vel");
+        let rig = rig(settings).await;
+        let stats = rig
+            .watch("asv/@twind/*/stats", "asv/@twind/ros/stats")
+            .await;
+        let fix = rig.input.declare_publisher(fix_key).await.unwrap();
+        let vel = rig.input.declare_publisher(vel_key).await.unwrap();
+        wait_matching(&fix, Duration::from_secs(20)).await;
+        wait_matching(&vel, Duration::from_secs(20)).await;
+        Self {
+            rig,
+            stats,
+            fix,
+            vel,
+        }
+    }
+
+    /// Waits for statistics that `want` holds for, stops the daemon, and
+    /// returns the last statistics and the run's summary.
+    async fn stop_when(
+        self,
+        want: impl Fn(&DaemonStatsMessage) -> bool,
+    ) -> (DaemonStatsMessage, twind::RunSummary) {
+        let got = receive_until(&self.stats, Duration::from_secs(20), |s| {
+            serde_json::from_slice::<DaemonStatsMessage>(&s.payload().to_bytes())
+                .is_ok_and(|m| want(&m))
+        })
+        .await;
+        let summary = self.rig.stop().await;
+        let last = serde_json::from_slice(&got.last().unwrap().payload().to_bytes()).unwrap();
+        (last, summary)
+    }
+}
+
 /// Truncated CDR, garbage, a fix without a velocity and a fix out of range
 /// on the ROS 2 input are refused with their reasons and counted in the
 /// daemon's statistics; the daemon goes on.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_ros2_input_is_refused_with_a_reason_and_counted() {
     let _serial = SERIAL.lock().await;
-    let settings = ros2_settings("");
-    let fix_key = ros_key::<NavSatFix>(&settings, "otter1", "fix");
-    let vel_key = ros_key::<TwistStamped>(&settings, "otter1", "vel");
-    let rig = rig(settings).await;
-    let stats = rig
-        .watch("asv/@twind/*/stats", "asv/@twind/ros/stats")
-        .await;
-    let fix = rig.input.declare_publisher(fix_key).await.unwrap();
-    let vel = rig.input.declare_publisher(vel_key).await.unwrap();
-    wait_matching(&fix, Duration::from_secs(20)).await;
+    let input = InputRig::new().await;
+    let (fix, vel) = (&input.fix, &input.vel);
     let (v, f) = as_ros(&twin_tests::wire::live_fix(now_s(), 0));
     fix.put(f.clone()).await.unwrap(); // no velocity yet
     fix.put(f[..f.len() - 9].to_vec()).await.unwrap();
@@ -511,14 +557,40 @@ async fn bad_ros2_input_is_refused_with_a_reason_and_counted() {
         let n = |r: &str| m.refused.get(r).copied().unwrap_or(0);
         n("ros2_no_velocity") == 1 && n("ros2_bad_cdr") == 3 && n("out_of_range") == 1
     };
-    let got = receive_until(&stats, Duration::from_secs(20), |s| {
-        serde_json::from_slice::<DaemonStatsMessage>(&s.payload().to_bytes())
-            .is_ok_and(|m| want(&m))
-    })
-    .await;
-    let summary = rig.stop().await;
-    let last: DaemonStatsMessage =
-        serde_json::from_slice(&got.last().unwrap().payload().to_bytes()).unwrap();
+    let (last, summary) = input.stop_when(want).await;
     assert!(want(&last), "{:?}", last.refused);
     assert_eq!(summary.vessels["otter1"].accepted()["gnss"], 1);
+}
+
+/// Messages a ROS 2 publisher numbered but that never came (rmw_zenoh
+/// drops under congestion) are counted as `ros2_missed`, per publisher;
+/// the fixes that did come are used.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn gaps_in_a_ros2_publishers_sequence_are_counted_as_missed() {
+    let _serial = SERIAL.lock().await;
+    let input = InputRig::new().await;
+    let start = now_s() - 10.0;
+    // The fix publisher skips 3 and 4, the velocity publisher 2: three
+    // messages missed in all, and every fix that came has its velocity.
+    let (fix_sequence, vel_sequence) = ([1, 2, 5, 6], [1, 3, 4, 5]);
+    for (i, (f_seq, v_seq)) in fix_sequence.into_iter().zip(vel_sequence).enumerate() {
+        let (v, f) = as_ros(&twin_tests::wire::live_fix(start + 0.2 * i as f64, i));
+        for (p, payload, sequence_number, gid) in
+            [(&input.vel, v, v_seq, 1), (&input.fix, f, f_seq, 2)]
+        {
+            let attachment = Attachment {
+                sequence_number,
+                source_timestamp_ns: 0,
+                source_gid: [gid; 16],
+            };
+            p.put(payload)
+                .attachment(attachment.to_bytes().to_vec())
+                .await
+                .unwrap();
+        }
+    }
+    let (last, summary) = input.stop_when(|m| m.ros2_missed == 3).await;
+    assert_eq!(last.ros2_missed, 3);
+    assert_eq!(summary.ros2_missed, 3);
+    assert_eq!(summary.vessels["otter1"].accepted()["gnss"], 4);
 }

@@ -570,6 +570,12 @@ pub struct DaemonStatsMessage {
     pub refused_recently: Vec<RefusedSender>,
     /// Calibration saves that failed.
     pub save_failures: u64,
+    /// ROS 2 input messages their publishers numbered but that never
+    /// arrived (the gaps in each publisher's sequence numbers): lost on the
+    /// sender's side, as rmw_zenoh drops under congestion on all but
+    /// KEEP_ALL + TRANSIENT_LOCAL topics. Not in `received`.
+    #[serde(default)]
+    pub ros2_missed: u64,
 }
 
 /// A vessel id (or, when no id could be read, the key) the daemon refused.

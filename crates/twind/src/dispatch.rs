@@ -22,8 +22,13 @@
 //!   a flood of garbage on new ids makes no task, no token, no key and no
 //!   entry that grows with the ids.
 //! - a message whose vessel's queue is full waits for room on the Zenoh
-//!   thread, holding up Zenoh's reading (back-pressure onto the sender, not
-//!   loss). The wait happens outside the router's lock.
+//!   thread, holding up Zenoh's reading (back-pressure onto the sender).
+//!   A sender that publishes with `CongestionControl::Block` (`twin-replay`,
+//!   `twin-bridge`) then waits and loses nothing; one with Zenoh's default,
+//!   `Drop` (rmw_zenoh on most topics), loses messages on its own side,
+//!   which only the ROS 2 input's sequence numbers reveal
+//!   ([`Dispatcher::missed_upstream`]). The wait happens outside the
+//!   router's lock.
 //! - each vessel input key (`gnss`, `nmea`, `actuators`) is declared to the
 //!   session at its first message, before the message is routed on
 //!   ([`VesselRoute::inputs`]).
@@ -572,6 +577,18 @@ impl Dispatcher {
                 })
                 .collect(),
             save_failures,
+            ros2_missed: router.summary.ros2_missed,
+        }
+    }
+
+    /// Counts `n` ROS 2 input messages their publisher numbered but that
+    /// never arrived.
+    pub(crate) fn missed_upstream(&self, n: u64) {
+        if n == 0 {
+            return;
+        }
+        if let Ok(mut router) = self.0.lock() {
+            router.summary.ros2_missed = router.summary.ros2_missed.saturating_add(n);
         }
     }
 }

@@ -316,6 +316,9 @@ pub struct RunSummary {
     pub refused: Counters,
     /// Messages routed to vessels.
     pub routed: u64,
+    /// ROS 2 input messages their publishers numbered but that never
+    /// arrived (see `DaemonStatsMessage::ros2_missed`).
+    pub ros2_missed: u64,
     /// Per-vessel counters of every vessel task that ended.
     pub vessels: HashMap<String, Counters>,
     /// What the Signal K output did, when it was on.

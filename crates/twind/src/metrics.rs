@@ -243,6 +243,11 @@ impl Metrics {
                 "Calibration saves that failed.",
                 stats.save_failures,
             ),
+            (
+                "twind_ros2_missed_total",
+                "ROS 2 input messages their publishers numbered but that never arrived.",
+                stats.ros2_missed,
+            ),
         ];
         for (name, help, value) in counts {
             counter(out, name, help, value);

@@ -18,7 +18,11 @@
 //! a fix on `{prefix}/{vessel}/gnss`. What cannot be read (bad CDR, no
 //! fix, no velocity near the fix, a value out of range) is refused with a
 //! reason (`ros2_bad_cdr`, `ros2_no_fix`, `ros2_no_velocity`, or the JSON
-//! path's own) and counted in the daemon's statistics.
+//! path's own) and counted in the daemon's statistics. rmw_zenoh
+//! publishers drop messages under congestion (all but KEEP_ALL +
+//! TRANSIENT_LOCAL topics), so a sender whose daemon falls behind loses
+//! them on its own side: the gaps in each publisher's sequence numbers
+//! are counted as `ros2_missed`.
 //!
 //! In ROS names a vessel id's `-` is written `_` (ROS names allow letters,
 //! digits and `_`); the input's vessel is the id as the topic spells it.
@@ -35,7 +39,8 @@ use twin_wire::ros2::msgs::{
     DiagnosticArray, NavSatFix, Odometry, Path, RosMessage, dds_type_name,
 };
 use twin_wire::ros2::rmw::{
-    Attachment, Endpoint, EntityKind, NodeIdentity, QOS_KEEP_LAST_10, gid_of, topic_key,
+    Attachment, Endpoint, EntityKind, NodeIdentity, QOS_KEEP_LAST_10, SequenceGaps, gid_of,
+    topic_key,
 };
 use zenoh::Session;
 use zenoh::bytes::ZBytes;
@@ -296,9 +301,25 @@ struct InputState {
     /// Each vessel's pending velocity and heading (at most `max_vessels`
     /// plus the known ones).
     pending: Mutex<HashMap<String, NavSatInput>>,
+    /// The gaps in each publisher's sequence numbers.
+    gaps: Mutex<SequenceGaps>,
 }
 
 impl InputState {
+    /// Counts the messages the publisher of `attachment` numbered before it
+    /// that never arrived.
+    fn note_sequence(&self, attachment: Option<&ZBytes>) {
+        let Some(attachment) = attachment.and_then(|a| Attachment::from_bytes(&a.to_bytes()))
+        else {
+            return;
+        };
+        let missed = match self.gaps.lock() {
+            Ok(mut gaps) => gaps.note(&attachment),
+            Err(_) => return,
+        };
+        self.dispatcher.missed_upstream(missed);
+    }
+
     fn on_sample(&self, topic: GnssTopic, key: &str, payload: &[u8]) {
         let vessel = key
             .strip_prefix(self.key_head.as_str())
@@ -368,6 +389,10 @@ impl Ros2Input {
             dispatcher,
             key_head,
             pending: Mutex::new(HashMap::new()),
+            // Three topics per vessel, each usually one publisher.
+            gaps: Mutex::new(SequenceGaps::new(
+                3 * (settings.vessels.max_vessels + settings.vessels.known.len()),
+            )),
         });
         let mut subscribers = Vec::new();
         for topic in GnssTopic::ALL {
@@ -387,6 +412,7 @@ impl Ros2Input {
             let sub = session
                 .declare_subscriber(key.clone())
                 .callback(move |sample| {
+                    state.note_sequence(sample.attachment());
                     let payload = sample.payload().to_bytes();
                     state.on_sample(topic, sample.key_expr().as_str(), &payload);
                 })

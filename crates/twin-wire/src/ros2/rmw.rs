@@ -185,9 +185,88 @@ impl Attachment {
     }
 }
 
+/// The messages each ROS 2 publisher numbered but that never arrived: the
+/// gaps in its attachments' sequence numbers. rmw_zenoh publishes with
+/// Zenoh's `Drop` congestion control on every topic but KEEP_ALL +
+/// TRANSIENT_LOCAL ones, so a sender whose receiver falls behind loses
+/// messages on its own side; only these gaps tell the receiver.
+///
+/// A sequence number at or below the last one seen (a restarted
+/// publisher, or a message overtaken) starts the count again from it and
+/// counts nothing. At most `max_publishers` are tracked; a new one beyond
+/// that forgets all (a flood of made-up GIDs costs bounded memory, and
+/// a real publisher's next gap is counted from its next message).
+#[derive(Debug, Clone)]
+pub struct SequenceGaps {
+    last: std::collections::HashMap<[u8; GID_BYTES], i64>,
+    max_publishers: usize,
+    missed: u64,
+}
+
+impl SequenceGaps {
+    /// Tracks at most `max_publishers` publishers at once.
+    pub fn new(max_publishers: usize) -> Self {
+        Self {
+            last: std::collections::HashMap::new(),
+            max_publishers: max_publishers.max(1),
+            missed: 0,
+        }
+    }
+
+    /// Notes one publication; returns how many of its publisher's messages
+    /// went missing just before it.
+    pub fn note(&mut self, attachment: &Attachment) -> u64 {
+        let seq = attachment.sequence_number;
+        let gid = attachment.source_gid;
+        if !self.last.contains_key(&gid) && self.last.len() >= self.max_publishers {
+            self.last.clear();
+        }
+        let gap = match self.last.insert(gid, seq) {
+            Some(last) if seq > last => u64::try_from(seq - last - 1).unwrap_or(0),
+            _ => 0,
+        };
+        self.missed = self.missed.saturating_add(gap);
+        gap
+    }
+
+    /// Every missed message so far.
+    pub fn missed(&self) -> u64 {
+        self.missed
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn from(gid: u8, sequence_number: i64) -> Attachment {
+        Attachment {
+            sequence_number,
+            source_timestamp_ns: 0,
+            source_gid: [gid; GID_BYTES],
+        }
+    }
+
+    #[test]
+    fn sequence_gaps_count_what_each_publisher_skipped_and_nothing_else() {
+        let mut gaps = SequenceGaps::new(2);
+        assert_eq!(gaps.note(&from(1, 1)), 0, "a first message has no gap");
+        assert_eq!(gaps.note(&from(1, 2)), 0);
+        assert_eq!(
+            gaps.note(&from(2, 7)),
+            0,
+            "another publisher, its own count"
+        );
+        assert_eq!(gaps.note(&from(1, 5)), 2, "3 and 4 never came");
+        assert_eq!(gaps.note(&from(2, 8)), 0);
+        assert_eq!(gaps.note(&from(1, 1)), 0, "a restart counts nothing");
+        assert_eq!(gaps.note(&from(1, 3)), 1);
+        assert_eq!(gaps.missed(), 3);
+        assert_eq!(gaps.note(&from(3, 10)), 0, "a third forgets the two");
+        assert_eq!(gaps.note(&from(1, 9)), 0, "counted again from here");
+        assert_eq!(gaps.note(&from(1, 11)), 1);
+        assert_eq!(gaps.missed(), 4);
+    }
 
     fn node() -> NodeIdentity {
         NodeIdentity {
