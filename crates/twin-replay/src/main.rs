@@ -1,5 +1,5 @@
 //! `twin-replay LOG --vessel ID [--rate N|max] [--start S] [--duration S]
-//! [--loop N] [--prefix asv]` plus Zenoh's usual flags: publishes a recorded
+//! [--loop N] [--wait S] [--prefix asv]` plus Zenoh's usual flags: publishes a recorded
 //! log as the contract's GNSS and actuator messages. Parses its arguments,
 //! sets up tracing and calls [`twin_replay::run`]; progress goes to stderr
 //! about once a second, the summary to stdout.
@@ -37,6 +37,10 @@ struct Cli {
     /// Passes over the log (0: until interrupted).
     #[arg(long = "loop", value_name = "N", default_value_t = 1)]
     loops: u32,
+    /// Wait up to S seconds for a subscriber to the fixes before publishing
+    /// anything (0: publish at once, even to nobody).
+    #[arg(long, value_name = "S", default_value_t = twin_replay::replay::DEFAULT_WAIT_FOR_SUBSCRIBER_S, value_parser = non_negative_seconds, allow_negative_numbers = true)]
+    wait: f64,
     /// The key prefix.
     #[arg(long, value_name = "PREFIX", default_value = "asv", value_parser = twin_zenoh::process::key_space)]
     prefix: KeySpace,
@@ -96,6 +100,7 @@ async fn replay(cli: Cli) -> anyhow::Result<()> {
         duration_s: cli.duration,
         loops: cli.loops,
         assembler: AssemblerConfig::default(),
+        wait_for_subscriber_s: cli.wait,
     };
     let shutdown = async {
         if tokio::signal::ctrl_c().await.is_err() {

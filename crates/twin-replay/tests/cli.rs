@@ -79,6 +79,10 @@ fn bad_arguments_exit_non_zero_naming_the_flag() {
             "--start",
         ),
         (
+            vec![log.as_str(), "--vessel", "v1", "--wait", "-1"],
+            "--wait",
+        ),
+        (
             vec![log.as_str(), "--vessel", "v1", "--prefix", "a/*"],
             "--prefix",
         ),

@@ -153,6 +153,53 @@ async fn ten_log_seconds_at_rate_ten_take_about_one_second() {
     assert_eq!(last.published, summary.published);
 }
 
+/// A daemon that subscribes after the replay has started (still starting
+/// up) still gets the whole log: the replay waits for it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_subscriber_that_comes_late_gets_the_whole_log() {
+    let vessel = VesselId::new("late").unwrap();
+    let log = generated_log(3);
+    let (expected, _) = expected(Cursor::new(log.clone()), &vessel, 0.0, None);
+    let (sub_session, endpoint) = listening_session().await;
+    let session = connected_session(&endpoint).await;
+    let options = options(&vessel, Rate::Max);
+    let replay = tokio::spawn(async move {
+        replay_reader(&session, "generated", bytes(log), &options, |_| {}).await
+    });
+    tokio::time::sleep(std::time::Duration::from_millis(500)).await;
+    let collector = Collector::new(&sub_session, "asv/late/**").await;
+    let summary = replay.await.unwrap().unwrap();
+    let received = collector.wait_for(expected.len()).await;
+    assert_eq!(summary.published.total() as usize, expected.len());
+    assert_eq!(received, expected);
+}
+
+/// With nobody subscribed the replay ends with an error that names the key,
+/// having published nothing; a wait of 0 publishes regardless.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn with_no_subscriber_nothing_is_published_unless_asked() {
+    let vessel = VesselId::new("alone").unwrap();
+    let (_sub_session, endpoint) = listening_session().await;
+    let session = connected_session(&endpoint).await;
+    let waiting = ReplayOptions {
+        wait_for_subscriber_s: 0.3,
+        ..options(&vessel, Rate::Max)
+    };
+    let e = replay_reader(&session, "gen", bytes(generated_log(1)), &waiting, |_| {})
+        .await
+        .unwrap_err();
+    assert!(matches!(e, ReplayError::NoSubscriber { .. }), "{e:?}");
+    assert!(e.to_string().contains("asv/alone/gnss"), "{e}");
+    let at_once = ReplayOptions {
+        wait_for_subscriber_s: 0.0,
+        ..waiting
+    };
+    let summary = replay_reader(&session, "gen", bytes(generated_log(1)), &at_once, |_| {})
+        .await
+        .unwrap();
+    assert!(summary.published.gnss > 0, "{summary:?}");
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn start_and_duration_select_the_window() {
     let vessel = VesselId::new("window").unwrap();

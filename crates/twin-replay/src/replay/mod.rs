@@ -22,6 +22,15 @@
 //! drains an in-process subscriber, run the replay on a multi-threaded
 //! runtime, or use a callback subscriber.
 //!
+//! # Nothing published into the void
+//! Zenoh sends a put only to the subscribers its session knows of: one
+//! published before the daemon has subscribed (a daemon still starting,
+//! or one whose subscription has not yet reached this session) is gone.
+//! Before its first message the replay therefore waits, up to
+//! `wait_for_subscriber_s`, until a subscriber takes its fixes
+//! ([`ReplayError::NoSubscriber`] otherwise, with nothing published).
+//! `0` publishes at once, to whoever listens.
+//!
 //! # Window and loops
 //! `start_offset_s` and `duration_s` are log seconds from the first record
 //! the reader gives. The whole log is still read and assembled from its
@@ -151,7 +160,14 @@ pub struct ReplayOptions {
     pub loops: u32,
     /// How records become fixes and propeller samples.
     pub assembler: AssemblerConfig,
+    /// How long to wait, before publishing anything, for a subscriber to
+    /// the fixes (the module doc), s; 0: do not wait.
+    pub wait_for_subscriber_s: f64,
 }
+
+/// The default of [`ReplayOptions::wait_for_subscriber_s`], s: more than a
+/// daemon takes to start and subscribe.
+pub const DEFAULT_WAIT_FOR_SUBSCRIBER_S: f64 = 10.0;
 
 impl ReplayOptions {
     /// The whole log once, at the recorded pace, under the default prefix,
@@ -165,11 +181,13 @@ impl ReplayOptions {
             duration_s: None,
             loops: 1,
             assembler: AssemblerConfig::default(),
+            wait_for_subscriber_s: DEFAULT_WAIT_FOR_SUBSCRIBER_S,
         }
     }
 
     /// Checks the numbers: a finite positive rate factor, a finite
-    /// non-negative start offset, a finite positive duration.
+    /// non-negative start offset, a finite positive duration, a finite
+    /// non-negative wait for a subscriber.
     pub fn validate(&self) -> Result<(), ReplayError> {
         let invalid = |option, value, expected| {
             Err(ReplayError::InvalidOption {
@@ -190,6 +208,10 @@ impl ReplayOptions {
             && !(d.is_finite() && d > 0.0)
         {
             return invalid("duration", d, "finite seconds > 0");
+        }
+        let wait = self.wait_for_subscriber_s;
+        if !(wait.is_finite() && wait >= 0.0) {
+            return invalid("wait for a subscriber", wait, "finite seconds >= 0");
         }
         Ok(())
     }
@@ -238,6 +260,17 @@ pub enum ReplayError {
         /// Zenoh's reason.
         #[source]
         source: zenoh::Error,
+    },
+    /// No subscriber took the fixes within the wait
+    /// ([`ReplayOptions::wait_for_subscriber_s`]); nothing was published.
+    #[error(
+        "no subscriber on {key} within {waited_s} s, nothing published (is the daemon running and connected? a wait of 0 publishes regardless)"
+    )]
+    NoSubscriber {
+        /// The fixes' key.
+        key: String,
+        /// How long the replay waited, s.
+        waited_s: f64,
     },
     /// Zenoh refused a publication (the session was closed, or an access
     /// control rule denies the key).
@@ -380,6 +413,42 @@ async fn declare(session: &Session, key: String) -> Result<Publisher<'static>, R
     }
 }
 
+/// Waits up to `wait_s` until `publisher` (on `key`) has a subscriber
+/// (the module doc); at once when `wait_s` is 0.
+async fn wait_for_subscriber(
+    publisher: &Publisher<'static>,
+    key: &str,
+    wait_s: f64,
+) -> Result<(), ReplayError> {
+    if wait_s <= 0.0 {
+        return Ok(());
+    }
+    let matched = || async {
+        publisher
+            .matching_status()
+            .await
+            .is_ok_and(|m| m.matching())
+    };
+    if matched().await {
+        return Ok(());
+    }
+    tracing::info!(key, "waiting up to {wait_s} s for a subscriber");
+    let deadline = Instant::now() + Duration::from_secs_f64(wait_s);
+    while Instant::now() < deadline {
+        tokio::time::sleep(SUBSCRIBER_POLL).await;
+        if matched().await {
+            return Ok(());
+        }
+    }
+    Err(ReplayError::NoSubscriber {
+        key: key.to_owned(),
+        waited_s: wait_s,
+    })
+}
+
+/// How often [`wait_for_subscriber`] looks.
+const SUBSCRIBER_POLL: Duration = Duration::from_millis(20);
+
 /// One replay in progress: the options, the counts, the clocks.
 struct Replay<'a, P> {
     options: &'a ReplayOptions,
@@ -455,6 +524,12 @@ impl<'a, P: FnMut(&Progress)> Replay<'a, P> {
             actuators: declare(session, self.options.keys.actuators(&self.options.vessel)).await?,
             actuators_key: self.options.keys.actuators(&self.options.vessel),
         };
+        wait_for_subscriber(
+            &outputs.gnss,
+            &outputs.gnss_key,
+            self.options.wait_for_subscriber_s,
+        )
+        .await?;
         loop {
             let (reader, bytes_read) = match log.take() {
                 Some(opened) => opened,
@@ -716,6 +791,14 @@ mod tests {
             },
             ReplayOptions {
                 duration_s: Some(0.0),
+                ..base.clone()
+            },
+            ReplayOptions {
+                wait_for_subscriber_s: -1.0,
+                ..base.clone()
+            },
+            ReplayOptions {
+                wait_for_subscriber_s: f64::NAN,
                 ..base.clone()
             },
         ] {
