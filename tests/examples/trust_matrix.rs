@@ -4,11 +4,12 @@
 //! this command's).
 //!
 //! ```text
-//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--threads T] [--failures] [--trace I] [--list]
+//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I] [--list]
 //! ```
 //!
 //! `--trace I` prints what the twin published over draw `I`, every 10 s;
-//! `--list` lists the draws.
+//! `--list` lists the draws; `--seeds A-B` runs the matrix of each seed
+//! from `A` to `B` and prints one row of counts per seed, with the total.
 
 use twin_core::twin::TwinConfig;
 use twin_tests::trust::{
@@ -23,6 +24,7 @@ fn main() -> Result<(), String> {
     let mut failures = false;
     let mut trace: Option<usize> = None;
     let mut list = false;
+    let mut seeds: Option<(u64, u64)> = None;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut value = |name: &str| {
@@ -38,8 +40,19 @@ fn main() -> Result<(), String> {
             "--failures" => failures = true,
             "--list" => list = true,
             "--trace" => trace = Some(value("--trace")? as usize),
+            "--seeds" => {
+                let text = args.next().unwrap_or_default();
+                let range = text
+                    .split_once('-')
+                    .and_then(|(a, b)| Some((a.parse().ok()?, b.parse().ok()?)))
+                    .filter(|(a, b)| a <= b);
+                seeds = Some(range.ok_or(format!("--seeds needs A-B, got {text:?}"))?);
+            }
             _ => return Err(format!("unknown argument {a}")),
         }
+    }
+    if let Some((first, last)) = seeds {
+        return print_seeds(own, other, first..=last, threads, failures);
     }
     let all = matrix_draws(own, other, seed);
     if list {
@@ -64,6 +77,65 @@ fn main() -> Result<(), String> {
     if failures {
         println!();
         for f in matrix.failures() {
+            println!("- {f}");
+        }
+    }
+    Ok(())
+}
+
+/// Runs the matrix of each seed in `seeds` and prints a row of counts per
+/// seed and their total; with `failures`, each seed's failed draws after.
+fn print_seeds(
+    own: usize,
+    other: usize,
+    seeds: std::ops::RangeInclusive<u64>,
+    threads: usize,
+    failures: bool,
+) -> Result<(), String> {
+    println!(
+        "Trust matrix per seed: {own} draws on twin-sim, {other} on the independent simulator each."
+    );
+    println!();
+    println!(
+        "| seed | draws | healthy propellers | false FAULTs | losses >= 0.15 | not declared in time | flapping | late onsets |"
+    );
+    println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let mut total = [0usize; 7];
+    let mut failed = Vec::new();
+    for seed in seeds {
+        let matrix = run_matrix(
+            &matrix_draws(own, other, seed),
+            TwinConfig::default(),
+            threads,
+        )?;
+        let row = [
+            matrix.draws(),
+            matrix.healthy_propellers(),
+            matrix.false_faults(),
+            matrix.losses_to_detect(),
+            matrix.missed(),
+            matrix.flapping(),
+            matrix.late_onsets(),
+        ];
+        for (t, r) in total.iter_mut().zip(row) {
+            *t += r;
+        }
+        let cells: Vec<String> = row.iter().map(ToString::to_string).collect();
+        println!("| {seed} | {} |", cells.join(" | "));
+        if failures {
+            failed.extend(
+                matrix
+                    .failures()
+                    .into_iter()
+                    .map(|f| format!("seed {seed} {f}")),
+            );
+        }
+    }
+    let cells: Vec<String> = total.iter().map(ToString::to_string).collect();
+    println!("| all | {} |", cells.join(" | "));
+    if failures {
+        println!();
+        for f in failed {
             println!("- {f}");
         }
     }

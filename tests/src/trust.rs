@@ -1079,6 +1079,21 @@ impl Matrix {
             .map(|(_, _, s)| s.final_status)
     }
 
+    /// Propellers that lost at least [`MUST_DETECT_LOSS`].
+    pub fn losses_to_detect(&self) -> usize {
+        self.final_statuses_of_losses().count()
+    }
+
+    /// Propellers that lost nothing over their trial.
+    pub fn healthy_propellers(&self) -> usize {
+        self.sides().filter(|(d, i, _)| d.loss[*i] == 0.0).count()
+    }
+
+    /// Draws judged.
+    pub fn draws(&self) -> usize {
+        self.all().count()
+    }
+
     /// Healthy propellers declared FAULT (any time), wrong side included.
     pub fn false_faults(&self) -> usize {
         self.sides().filter(|(_, _, s)| s.false_fault).count()
