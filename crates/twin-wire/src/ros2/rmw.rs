@@ -185,6 +185,10 @@ impl Attachment {
     }
 }
 
+/// The largest jump in a publisher's sequence numbers counted as missed
+/// messages: about three hours of a 100 Hz topic.
+pub const MAX_SEQUENCE_GAP: u64 = 1_000_000;
+
 /// The messages each ROS 2 publisher numbered but that never arrived: the
 /// gaps in its attachments' sequence numbers. rmw_zenoh publishes with
 /// Zenoh's `Drop` congestion control on every topic but KEEP_ALL +
@@ -192,7 +196,9 @@ impl Attachment {
 /// messages on its own side; only these gaps tell the receiver.
 ///
 /// A sequence number at or below the last one seen (a restarted
-/// publisher, or a message overtaken) starts the count again from it and
+/// publisher, or a message overtaken), or further ahead than
+/// [`MAX_SEQUENCE_GAP`] (not a gap a live publisher leaves: a new one
+/// under a reused GID, or garbage), starts the count again from it and
 /// counts nothing. At most `max_publishers` are tracked; a new one beyond
 /// that forgets all (a flood of made-up GIDs costs bounded memory, and
 /// a real publisher's next gap is counted from its next message).
@@ -222,8 +228,12 @@ impl SequenceGaps {
             self.last.clear();
         }
         let gap = match self.last.insert(gid, seq) {
-            Some(last) if seq > last => u64::try_from(seq - last - 1).unwrap_or(0),
-            _ => 0,
+            // In i128: two i64 numbers far apart do not overflow.
+            Some(last) => u64::try_from(i128::from(seq) - i128::from(last) - 1)
+                .ok()
+                .filter(|gap| *gap <= MAX_SEQUENCE_GAP)
+                .unwrap_or(0),
+            None => 0,
         };
         self.missed = self.missed.saturating_add(gap);
         gap
@@ -266,6 +276,12 @@ mod tests {
         assert_eq!(gaps.note(&from(1, 9)), 0, "counted again from here");
         assert_eq!(gaps.note(&from(1, 11)), 1);
         assert_eq!(gaps.missed(), 4);
+        // Sequence numbers a sender made up: no overflow, no huge count.
+        assert_eq!(gaps.note(&from(1, i64::MIN)), 0);
+        assert_eq!(gaps.note(&from(1, i64::MAX)), 0);
+        assert_eq!(gaps.note(&from(1, i64::MIN)), 0);
+        assert_eq!(gaps.note(&from(1, i64::MIN + 3)), 2);
+        assert_eq!(gaps.missed(), 6);
     }
 
     fn node() -> NodeIdentity {
