@@ -219,6 +219,7 @@ async fn metrics_count_what_the_daemon_received_and_promtool_accepts_them() {
             0.0,
         ),
         ("twind_calibration_save_failures_total", 0.0),
+        ("twind_ros2_missed_total", 0.0),
     ];
     for (series, want) in expected {
         assert_eq!(value(&text, series), Some(want), "{series}");
