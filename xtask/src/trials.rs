@@ -1005,8 +1005,8 @@ pub fn prediction_markdown(seeds: u64) -> String {
     out
 }
 
-/// The first split of the live forecasts' table, s: the twins have a
-/// minute of the manoeuvre, with its turns, behind them.
+/// The first split of the live forecasts' table, s: the twins have 40 s
+/// of the manoeuvre, its first turns, behind them.
 const LIVE_FIRST_S: f64 = 40.0;
 /// How often a live forecast starts in that table, s.
 const LIVE_EVERY_S: f64 = 5.0;

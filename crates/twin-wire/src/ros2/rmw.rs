@@ -206,7 +206,6 @@ pub const MAX_SEQUENCE_GAP: u64 = 1_000_000;
 pub struct SequenceGaps {
     last: std::collections::HashMap<[u8; GID_BYTES], i64>,
     max_publishers: usize,
-    missed: u64,
 }
 
 impl SequenceGaps {
@@ -215,7 +214,6 @@ impl SequenceGaps {
         Self {
             last: std::collections::HashMap::new(),
             max_publishers: max_publishers.max(1),
-            missed: 0,
         }
     }
 
@@ -227,21 +225,14 @@ impl SequenceGaps {
         if !self.last.contains_key(&gid) && self.last.len() >= self.max_publishers {
             self.last.clear();
         }
-        let gap = match self.last.insert(gid, seq) {
+        match self.last.insert(gid, seq) {
             // In i128: two i64 numbers far apart do not overflow.
             Some(last) => u64::try_from(i128::from(seq) - i128::from(last) - 1)
                 .ok()
                 .filter(|gap| *gap <= MAX_SEQUENCE_GAP)
                 .unwrap_or(0),
             None => 0,
-        };
-        self.missed = self.missed.saturating_add(gap);
-        gap
-    }
-
-    /// Every missed message so far.
-    pub fn missed(&self) -> u64 {
-        self.missed
+        }
     }
 }
 
@@ -271,17 +262,14 @@ mod tests {
         assert_eq!(gaps.note(&from(2, 8)), 0);
         assert_eq!(gaps.note(&from(1, 1)), 0, "a restart counts nothing");
         assert_eq!(gaps.note(&from(1, 3)), 1);
-        assert_eq!(gaps.missed(), 3);
         assert_eq!(gaps.note(&from(3, 10)), 0, "a third forgets the two");
         assert_eq!(gaps.note(&from(1, 9)), 0, "counted again from here");
         assert_eq!(gaps.note(&from(1, 11)), 1);
-        assert_eq!(gaps.missed(), 4);
         // Sequence numbers a sender made up: no overflow, no huge count.
         assert_eq!(gaps.note(&from(1, i64::MIN)), 0);
         assert_eq!(gaps.note(&from(1, i64::MAX)), 0);
         assert_eq!(gaps.note(&from(1, i64::MIN)), 0);
         assert_eq!(gaps.note(&from(1, i64::MIN + 3)), 2);
-        assert_eq!(gaps.missed(), 6);
     }
 
     fn node() -> NodeIdentity {
