@@ -101,19 +101,26 @@ pub struct DecisionConfig {
 }
 
 impl Default for DecisionConfig {
-    /// Suspect at 5 %, fault at 10 %, clear below 3 %, two sigmas, 3 s to
-    /// confirm a fault (60 s from a weakly told comparison), 15 s to
-    /// confirm a suspect and 10 s to clear. The seed's healthy propellers
-    /// showed 0-4 % input faults, its broken one 12-18 %.
+    /// Suspect at 5 %, fault at 10 %, clear below 3 %, two and a half
+    /// sigmas, 3 s to confirm a fault (30 s from a weakly told
+    /// comparison), 30 s to confirm a suspect and 10 s to clear. The seed's
+    /// healthy propellers showed 0-4 % input faults, its broken one
+    /// 12-18 %. The sigmas, the two longer confirmations, the comparison's
+    /// excitation bar (`KineticConfig::relative_excitation_sigma`) and the
+    /// profile's plausibility guard
+    /// (`KineticConfig::plausible_profile_sigmas`) were chosen together on the trust matrix's seeds 1-11 and checked on
+    /// seeds 12-33 (docs/known-issues.md): a healthy vessel unlike its
+    /// profile drifts its relative loss 2-3.5 sigmas for tens of seconds,
+    /// which two sigmas took for a fault.
     fn default() -> Self {
         Self {
             suspect_loss: 0.05,
             fault_loss: 0.10,
             clear_loss: 0.03,
-            confidence_sigmas: 2.0,
+            confidence_sigmas: 2.5,
             confirm_s: 3.0,
-            suspect_confirm_s: 15.0,
-            weak_confirm_s: 60.0,
+            suspect_confirm_s: 30.0,
+            weak_confirm_s: 30.0,
             clear_s: 10.0,
         }
     }
@@ -535,14 +542,14 @@ mod tests {
         let changes = run(&mut d, &series);
         let port: Vec<_> = changes.iter().filter(|c| c.side == Side::Port).collect();
         assert_eq!(port.len(), 1, "{port:?}");
-        // Suspect evidence from t where loss >= 0.05 and loss - 0.04 >= 0.03:
-        // t ~ 6.2 s; 3 s later the evidence shows a fault, declared at once
+        // Suspect evidence from t where loss >= 0.05 and loss - 0.05 >= 0.03:
+        // t ~ 6.4 s; 3 s later the evidence shows a fault, declared at once
         // (no suspect on the way). The onset is the last sample before that
         // evidence with the loss below the clear level (5.4 s, 0.024), not
         // the confirmation.
         assert_eq!(port[0].to, ThrusterStatus::Fault);
         assert!((port[0].onset_time_s - 5.4).abs() < 0.05, "{:?}", port[0]);
-        assert!((port[0].time_s - 9.2).abs() < 0.05, "{:?}", port[0]);
+        assert!((port[0].time_s - 9.4).abs() < 0.05, "{:?}", port[0]);
         assert!(port[0].confidence > 0.99);
         assert_eq!(
             d.decision(Side::Port).onset_time_s,
@@ -555,14 +562,14 @@ mod tests {
         let mut d = FaultDecider::new(DecisionConfig::default());
         let c = run(
             &mut d,
-            &(0..300)
+            &(0..400)
                 .map(|k| (k as f64 * 0.1, 0.07, 0.01, true))
                 .collect::<Vec<_>>(),
         );
         assert_eq!(c.len(), 1);
         assert_eq!(c[0].to, ThrusterStatus::Suspect);
         assert_eq!(c[0].onset_time_s, 0.0);
-        assert!((c[0].time_s - 15.0).abs() < 0.05, "{:?}", c[0]);
+        assert!((c[0].time_s - 30.0).abs() < 0.05, "{:?}", c[0]);
     }
 
     #[test]
@@ -665,21 +672,21 @@ mod tests {
     }
 
     #[test]
-    fn a_weakly_told_fault_must_last_a_minute_and_claims_nothing_else() {
+    fn a_weakly_told_fault_must_last_half_a_minute_and_claims_nothing_else() {
         let feed = |d: &mut FaultDecider, from: usize, to: usize, port: f64| -> Vec<StatusChange> {
             (from..to)
                 .flat_map(|k| d.update(k as f64 * 0.2, [weakly(port), weakly(-port)]))
                 .collect()
         };
-        // 0.25 +- 0.08: fault evidence (0.25 - 0.16 >= 0.05), but weak.
+        // 0.3 +- 0.08: fault evidence (0.3 - 0.2 >= 0.05), but weak.
         let mut d = FaultDecider::new(DecisionConfig::default());
-        assert!(feed(&mut d, 0, 295, 0.25).is_empty());
+        assert!(feed(&mut d, 0, 145, 0.3).is_empty());
         assert_eq!(d.decision(Side::Port).status, ThrusterStatus::NotExcited);
-        let c = feed(&mut d, 295, 305, 0.25);
+        let c = feed(&mut d, 145, 155, 0.3);
         assert_eq!(c.len(), 1, "{c:?}");
         assert_eq!(
             (c[0].from, c[0].to, c[0].time_s),
-            (ThrusterStatus::NotExcited, ThrusterStatus::Fault, 60.0)
+            (ThrusterStatus::NotExcited, ThrusterStatus::Fault, 30.0)
         );
         // The other side's weak comparison shows nothing worse than
         // nominal: it is not called nominal on weak evidence.
@@ -687,18 +694,18 @@ mod tests {
             d.decision(Side::Starboard).status,
             ThrusterStatus::NotExcited
         );
-        // Weak fault evidence that lapses before the minute is nothing.
+        // Weak fault evidence that lapses before the half minute is nothing.
         let mut d = FaultDecider::new(DecisionConfig::default());
-        assert!(feed(&mut d, 0, 200, 0.25).is_empty());
-        assert!(feed(&mut d, 200, 201, 0.1).is_empty());
-        assert!(feed(&mut d, 201, 400, 0.25).is_empty());
+        assert!(feed(&mut d, 0, 100, 0.3).is_empty());
+        assert!(feed(&mut d, 100, 101, 0.1).is_empty());
+        assert!(feed(&mut d, 101, 200, 0.3).is_empty());
         assert_eq!(d.decision(Side::Port).status, ThrusterStatus::NotExcited);
     }
 
     #[test]
     fn an_uncertain_large_estimate_is_not_a_fault() {
         let mut d = FaultDecider::new(DecisionConfig::default());
-        // 15 % +- 10 %: not distinguishable from zero at two sigma.
+        // 15 % +- 10 %: not distinguishable from zero at two and a half sigmas.
         let c = run(
             &mut d,
             &(0..200)

@@ -65,7 +65,7 @@ pub struct KineticConfig {
     /// must be heard, not when the data have stopped telling it. Within
     /// it, a comparison not told is told weakly
     /// ([`LossReading::relative_weakly_told`]): the decision then takes
-    /// its fault only after a minute of evidence (`twin_core::decision`).
+    /// its fault only after half a minute of evidence (`twin_core::decision`).
     pub relative_release_sigma: f64,
     /// With the current estimated, a loss both propellers share and a
     /// current along the track slow the vessel alike: only turning
@@ -209,12 +209,12 @@ impl KineticConfig {
             unmodelled_force_factor: f,
             max_propeller_age_s: 1.0,
             excitation_sigma: 0.1,
-            relative_excitation_sigma: 0.06,
+            relative_excitation_sigma: 0.07,
             relative_release_sigma: 0.10,
             min_heading_spread: 0.05,
             min_yaw_rate_spread: 0.5,
             straight_yaw_rate_radps: 0.02,
-            plausible_profile_sigmas: 3.0,
+            plausible_profile_sigmas: 2.5,
             max_explained_nis_per_dof: 2.0,
             propeller_mismatch_sigma: 0.03,
         }
