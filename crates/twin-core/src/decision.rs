@@ -108,10 +108,11 @@ impl Default for DecisionConfig {
     /// 12-18 %. The sigmas, the two longer confirmations, the comparison's
     /// excitation bar (`KineticConfig::relative_excitation_sigma`) and the
     /// profile's plausibility guard
-    /// (`KineticConfig::plausible_profile_sigmas`) were chosen together on the trust matrix's seeds 1-11 and checked on
-    /// seeds 12-33 (docs/known-issues.md): a healthy vessel unlike its
-    /// profile drifts its relative loss 2-3.5 sigmas for tens of seconds,
-    /// which two sigmas took for a fault.
+    /// (`KineticConfig::plausible_profile_sigmas`) were chosen together on
+    /// the trust matrix and checked on seeds not used to choose them
+    /// (docs/model.md section 10): a healthy vessel unlike its profile
+    /// drifts its relative loss 2-3.5 sigmas for tens of seconds, which two
+    /// sigmas took for a fault.
     fn default() -> Self {
         Self {
             suspect_loss: 0.05,
