@@ -4,17 +4,30 @@
 //! this command's).
 //!
 //! ```text
-//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I] [--list]
+//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I] [--list] [--known-antenna]
 //! ```
 //!
 //! `--trace I` prints what the twin published over draw `I`, every 10 s;
 //! `--list` lists the draws; `--seeds A-B` runs the matrix of each seed
-//! from `A` to `B` and prints one row of counts per seed, with the total.
+//! from `A` to `B` and prints one row of counts per seed, with the total;
+//! `--known-antenna` gives the twin each draw's true antenna position, as
+//! a profile that states it does (the twin does not estimate it).
 
 use twin_core::twin::TwinConfig;
 use twin_tests::trust::{
-    Draw, MATRIX_OTHER_DRAWS, MATRIX_OWN_DRAWS, MATRIX_SEED, matrix_draws, run_matrix,
+    Draw, MATRIX_OTHER_DRAWS, MATRIX_OWN_DRAWS, MATRIX_SEED, matrix_draws, run_matrix_with,
+    with_known_antenna,
 };
+
+/// The twin's configuration for `draw`: the default, with the draw's
+/// antenna position where `known_antenna`.
+fn config_of(draw: &Draw, known_antenna: bool) -> TwinConfig {
+    if known_antenna {
+        with_known_antenna(TwinConfig::default(), draw)
+    } else {
+        TwinConfig::default()
+    }
+}
 
 fn main() -> Result<(), String> {
     let mut own = MATRIX_OWN_DRAWS;
@@ -24,6 +37,7 @@ fn main() -> Result<(), String> {
     let mut failures = false;
     let mut trace: Option<usize> = None;
     let mut list = false;
+    let mut known_antenna = false;
     let mut seeds: Option<(u64, u64)> = None;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -39,6 +53,7 @@ fn main() -> Result<(), String> {
             "--threads" => threads = value("--threads")? as usize,
             "--failures" => failures = true,
             "--list" => list = true,
+            "--known-antenna" => known_antenna = true,
             "--trace" => trace = Some(value("--trace")? as usize),
             "--seeds" => {
                 let text = args.next().unwrap_or_default();
@@ -52,7 +67,7 @@ fn main() -> Result<(), String> {
         }
     }
     if let Some((first, last)) = seeds {
-        return print_seeds(own, other, first..=last, threads, failures);
+        return print_seeds(own, other, first..=last, threads, failures, known_antenna);
     }
     let all = matrix_draws(own, other, seed);
     if list {
@@ -66,9 +81,9 @@ fn main() -> Result<(), String> {
             .iter()
             .find(|d| d.index == i)
             .ok_or(format!("no draw {i}"))?;
-        return print_trace(draw);
+        return print_trace(draw, config_of(draw, known_antenna));
     }
-    let matrix = run_matrix(&all, TwinConfig::default(), threads)?;
+    let matrix = run_matrix_with(&all, threads, |d| config_of(d, known_antenna))?;
     println!(
         "Trust matrix: {own} draws on twin-sim, {other} on the independent simulator (seed {seed})."
     );
@@ -91,6 +106,7 @@ fn print_seeds(
     seeds: std::ops::RangeInclusive<u64>,
     threads: usize,
     failures: bool,
+    known_antenna: bool,
 ) -> Result<(), String> {
     println!(
         "Trust matrix per seed: {own} draws on twin-sim, {other} on the independent simulator each."
@@ -103,11 +119,9 @@ fn print_seeds(
     let mut total = [0usize; 7];
     let mut failed = Vec::new();
     for seed in seeds {
-        let matrix = run_matrix(
-            &matrix_draws(own, other, seed),
-            TwinConfig::default(),
-            threads,
-        )?;
+        let matrix = run_matrix_with(&matrix_draws(own, other, seed), threads, |d| {
+            config_of(d, known_antenna)
+        })?;
         let row = [
             matrix.draws(),
             matrix.healthy_propellers(),
@@ -143,10 +157,10 @@ fn print_seeds(
 }
 
 /// Prints what the twin published over `draw`, every 10 s.
-fn print_trace(draw: &Draw) -> Result<(), String> {
+fn print_trace(draw: &Draw, config: TwinConfig) -> Result<(), String> {
     println!("{}", draw.describe());
     let trial = twin_tests::trust::simulate(draw)?;
-    let record = twin_tests::trust::run(&trial, TwinConfig::default());
+    let record = twin_tests::trust::run(&trial, config);
     let mut next = 0.0;
     for s in &record.samples {
         if s.elapsed_s < next {

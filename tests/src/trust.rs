@@ -1289,6 +1289,25 @@ fn max(v: &[f64]) -> f64 {
 
 /// Runs and judges `draws` on `threads` threads with the twin's `config`.
 pub fn run_matrix(draws: &[Draw], config: TwinConfig, threads: usize) -> Result<Matrix, String> {
+    run_matrix_with(draws, threads, |_| config)
+}
+
+/// The twin's `config` with the GNSS antenna where `draw` put it, as a
+/// profile that states the antenna's position (`gnss.antenna_forward_m`,
+/// `gnss.antenna_starboard_m`) gives it.
+pub fn with_known_antenna(config: TwinConfig, draw: &Draw) -> TwinConfig {
+    let mut config = config;
+    config.kinetic.params.antenna_m = draw.lever_arm_m;
+    config
+}
+
+/// [`run_matrix`] with the twin's configuration chosen per draw by
+/// `config_of` (e.g. [`with_known_antenna`]).
+pub fn run_matrix_with(
+    draws: &[Draw],
+    threads: usize,
+    config_of: impl Fn(&Draw) -> TwinConfig + Sync,
+) -> Result<Matrix, String> {
     let next = std::sync::atomic::AtomicUsize::new(0);
     let results = std::sync::Mutex::new(Vec::new());
     let error = std::sync::Mutex::new(None::<String>);
@@ -1300,7 +1319,7 @@ pub fn run_matrix(draws: &[Draw], config: TwinConfig, threads: usize) -> Result<
                     let Some(draw) = draws.get(i) else { break };
                     match simulate(draw) {
                         Ok(trial) => {
-                            let record = run(&trial, config);
+                            let record = run(&trial, config_of(draw));
                             let sc = score(draw, &record);
                             if let Ok(mut r) = results.lock() {
                                 r.push((*draw, sc));
