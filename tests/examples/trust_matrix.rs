@@ -4,29 +4,44 @@
 //! this command's).
 //!
 //! ```text
-//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I] [--list] [--known-antenna]
+//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I] [--list] [--known-antenna] [--identified]
 //! ```
 //!
 //! `--trace I` prints what the twin published over draw `I`, every 10 s;
 //! `--list` lists the draws; `--seeds A-B` runs the matrix of each seed
 //! from `A` to `B` and prints one row of counts per seed, with the total;
 //! `--known-antenna` gives the twin each draw's true antenna position, as
-//! a profile that states it does (the twin does not estimate it).
+//! a profile that states it does (the twin does not estimate it);
+//! `--identified` sails each draw on the profile `twin identify` gives
+//! from a healthy trial of the draw's vessel first
+//! (`twin_tests::trust::with_identified_profile`).
 
 use twin_core::twin::TwinConfig;
 use twin_tests::trust::{
     Draw, MATRIX_OTHER_DRAWS, MATRIX_OWN_DRAWS, MATRIX_SEED, matrix_draws, run_matrix_with,
-    with_known_antenna,
+    with_identified_profile, with_known_antenna,
 };
 
-/// The twin's configuration for `draw`: the default, with the draw's
-/// antenna position where `known_antenna`.
-fn config_of(draw: &Draw, known_antenna: bool) -> TwinConfig {
-    if known_antenna {
-        with_known_antenna(TwinConfig::default(), draw)
-    } else {
-        TwinConfig::default()
+/// What the twin is told of each draw's vessel beyond the Otter's profile.
+#[derive(Debug, Clone, Copy, Default)]
+struct Told {
+    /// The antenna's true position.
+    antenna: bool,
+    /// A profile identified from a healthy trial of the vessel.
+    identified: bool,
+}
+
+/// The twin's configuration for `draw`: the default, with what `told`
+/// adds.
+fn config_of(draw: &Draw, told: Told) -> Result<TwinConfig, String> {
+    let mut config = TwinConfig::default();
+    if told.antenna {
+        config = with_known_antenna(config, draw);
     }
+    if told.identified {
+        config = with_identified_profile(config, draw)?;
+    }
+    Ok(config)
 }
 
 fn main() -> Result<(), String> {
@@ -37,7 +52,7 @@ fn main() -> Result<(), String> {
     let mut failures = false;
     let mut trace: Option<usize> = None;
     let mut list = false;
-    let mut known_antenna = false;
+    let mut told = Told::default();
     let mut seeds: Option<(u64, u64)> = None;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -53,7 +68,8 @@ fn main() -> Result<(), String> {
             "--threads" => threads = value("--threads")? as usize,
             "--failures" => failures = true,
             "--list" => list = true,
-            "--known-antenna" => known_antenna = true,
+            "--known-antenna" => told.antenna = true,
+            "--identified" => told.identified = true,
             "--trace" => trace = Some(value("--trace")? as usize),
             "--seeds" => {
                 let text = args.next().unwrap_or_default();
@@ -67,7 +83,7 @@ fn main() -> Result<(), String> {
         }
     }
     if let Some((first, last)) = seeds {
-        return print_seeds(own, other, first..=last, threads, failures, known_antenna);
+        return print_seeds(own, other, first..=last, threads, failures, told);
     }
     let all = matrix_draws(own, other, seed);
     if list {
@@ -81,9 +97,9 @@ fn main() -> Result<(), String> {
             .iter()
             .find(|d| d.index == i)
             .ok_or(format!("no draw {i}"))?;
-        return print_trace(draw, config_of(draw, known_antenna));
+        return print_trace(draw, config_of(draw, told)?);
     }
-    let matrix = run_matrix_with(&all, threads, |d| config_of(d, known_antenna))?;
+    let matrix = run_matrix_with(&all, threads, |d| config_of(d, told))?;
     println!(
         "Trust matrix: {own} draws on twin-sim, {other} on the independent simulator (seed {seed})."
     );
@@ -106,7 +122,7 @@ fn print_seeds(
     seeds: std::ops::RangeInclusive<u64>,
     threads: usize,
     failures: bool,
-    known_antenna: bool,
+    told: Told,
 ) -> Result<(), String> {
     println!(
         "Trust matrix per seed: {own} draws on twin-sim, {other} on the independent simulator each."
@@ -120,7 +136,7 @@ fn print_seeds(
     let mut failed = Vec::new();
     for seed in seeds {
         let matrix = run_matrix_with(&matrix_draws(own, other, seed), threads, |d| {
-            config_of(d, known_antenna)
+            config_of(d, told)
         })?;
         let row = [
             matrix.draws(),

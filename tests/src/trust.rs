@@ -532,7 +532,15 @@ fn own_scenario(draw: &Draw) -> Scenario {
         }
         w
     };
-    let mut sc = Scenario::waypoint_mode(draw.class.name(), draw.duration_s, 1.5, waypoints);
+    with_draw(
+        draw,
+        Scenario::waypoint_mode(draw.class.name(), draw.duration_s, 1.5, waypoints),
+    )
+}
+
+/// `sc` (its manoeuvres) with what `draw` plants: the vessel, its losses,
+/// the water, the sensors as installed, the noise seed.
+fn with_draw(draw: &Draw, mut sc: Scenario) -> Scenario {
     sc.seed = draw.seed;
     sc.propellers.port.loss = draw.loss[0];
     sc.propellers.starboard.loss = draw.loss[1];
@@ -572,7 +580,12 @@ fn own_scenario(draw: &Draw) -> Scenario {
 }
 
 fn simulate_own(draw: &Draw) -> Trial {
-    let run = twin_sim::simulate(&own_scenario(draw)).expect("a valid scenario");
+    simulate_scenario(&own_scenario(draw))
+}
+
+/// `twin-sim`'s trial of `sc`.
+fn simulate_scenario(sc: &Scenario) -> Trial {
+    let run = twin_sim::simulate(sc).expect("a valid scenario");
     let mut log = Vec::new();
     write_jsonl(&run, &mut log).expect("writing to memory");
     Trial {
@@ -1289,7 +1302,7 @@ fn max(v: &[f64]) -> f64 {
 
 /// Runs and judges `draws` on `threads` threads with the twin's `config`.
 pub fn run_matrix(draws: &[Draw], config: TwinConfig, threads: usize) -> Result<Matrix, String> {
-    run_matrix_with(draws, threads, |_| config)
+    run_matrix_with(draws, threads, |_| Ok(config))
 }
 
 /// The twin's `config` with the GNSS antenna where `draw` put it, as a
@@ -1301,12 +1314,78 @@ pub fn with_known_antenna(config: TwinConfig, draw: &Draw) -> TwinConfig {
     config
 }
 
+/// The identification trial of `draw`'s vessel: the same hull, propellers
+/// and sensors as installed (the antenna's place, the heading sensor's
+/// offset, the GNSS latency, the shaft-speed sampling, the gyro), sailed
+/// healthy in still water on another day (another noise seed). On
+/// `twin-sim` its manoeuvres are those of the shipped identification
+/// trial ([`IDENTIFICATION_SCENARIO`]: steps of thrust, turns both ways, a
+/// zig-zag); the independent simulator sails its lawn-mower.
+pub fn identification_draw(draw: &Draw) -> Draw {
+    Draw {
+        class: Class::Healthy,
+        seed: draw.seed ^ 0x005e_ed1d,
+        loss: [0.0, 0.0],
+        onset_s: 0.0,
+        current: None,
+        turn_sign: 1.0,
+        ..*draw
+    }
+}
+
+/// The shipped identification trial whose manoeuvres `twin-sim`'s
+/// identification trials sail (docs/identification.md).
+pub const IDENTIFICATION_SCENARIO: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../config/scenarios/identify_heavy-otter.toml"
+);
+
+/// The twin's `config` on the profile `twin identify` gives from the
+/// identification trial of `draw`'s vessel ([`identification_draw`]),
+/// starting from the Otter's with the antenna where `config` puts it:
+/// what an operator who ran that trial first would sail with
+/// (docs/identification.md).
+pub fn with_identified_profile(config: TwinConfig, draw: &Draw) -> Result<TwinConfig, String> {
+    let healthy = identification_draw(draw);
+    let mut start = twin_wire::profile::VesselProfile::otter();
+    [start.gnss.antenna_forward_m, start.gnss.antenna_starboard_m] =
+        config.kinetic.params.antenna_m;
+    let trial = match draw.simulator {
+        Simulator::Own => {
+            let text = std::fs::read_to_string(IDENTIFICATION_SCENARIO)
+                .map_err(|e| format!("{IDENTIFICATION_SCENARIO}: {e}"))?;
+            let shipped = Scenario::from_toml_str(&text)
+                .map_err(|e| format!("{IDENTIFICATION_SCENARIO}: {e}"))?;
+            simulate_scenario(&with_draw(&healthy, shipped))
+        }
+        Simulator::Other => simulate_other(&healthy)?,
+    };
+    let dir = std::env::temp_dir().join(format!(
+        "twin-trust-identify-{}-{}",
+        std::process::id(),
+        draw.index
+    ));
+    std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
+    let log = dir.join("trial.jsonl");
+    std::fs::write(&log, &trial.log).map_err(|e| e.to_string())?;
+    let report = twin_cli::identify::identify_path(
+        &log,
+        twin_wire::assemble::SourceChoice::Best,
+        &start,
+        "identified",
+        &twin_core::diagnose::IdentifyConfig::default(),
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+    let report = report.map_err(|e| format!("{}: {e}", draw.describe()))?;
+    Ok(report.identified.twin_config(config))
+}
+
 /// [`run_matrix`] with the twin's configuration chosen per draw by
-/// `config_of` (e.g. [`with_known_antenna`]).
+/// `config_of` (e.g. [`with_known_antenna`], [`with_identified_profile`]).
 pub fn run_matrix_with(
     draws: &[Draw],
     threads: usize,
-    config_of: impl Fn(&Draw) -> TwinConfig + Sync,
+    config_of: impl Fn(&Draw) -> Result<TwinConfig, String> + Sync,
 ) -> Result<Matrix, String> {
     let next = std::sync::atomic::AtomicUsize::new(0);
     let results = std::sync::Mutex::new(Vec::new());
@@ -1317,9 +1396,9 @@ pub fn run_matrix_with(
                 loop {
                     let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                     let Some(draw) = draws.get(i) else { break };
-                    match simulate(draw) {
-                        Ok(trial) => {
-                            let record = run(&trial, config_of(draw));
+                    match simulate(draw).and_then(|trial| Ok((trial, config_of(draw)?))) {
+                        Ok((trial, config)) => {
+                            let record = run(&trial, config);
                             let sc = score(draw, &record);
                             if let Ok(mut r) = results.lock() {
                                 r.push((*draw, sc));

@@ -244,6 +244,10 @@ pub struct Diagnosis {
 pub(super) struct Hypothesis {
     pub current: Term<2>,
     pub loss: Term<2>,
+    /// The heading sensor's offset as a state of the kinetic base: held
+    /// at zero while causes are searched (a heading offset is a cause of
+    /// its own), estimated by `identify`, as the live twin does.
+    pub heading_bias: Term<1>,
     pub effects: SensorEffects,
     pub stw_scale: f64,
     pub sideslip_m: f64,
@@ -257,6 +261,7 @@ impl Hypothesis {
         Self {
             current: Term::Off,
             loss: Term::Off,
+            heading_bias: Term::Off,
             effects: SensorEffects::default(),
             stw_scale: 1.0,
             sideslip_m: 0.0,

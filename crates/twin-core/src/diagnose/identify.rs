@@ -8,7 +8,8 @@
 //! scale on it: the radius of gyration) are searched for the largest likelihood of
 //! the training part of the trial (the first `1 - holdout_fraction` of it)
 //! under the extended twin: both propellers healthy (losses held at zero),
-//! the current estimated, the velocities' process noise that of the water
+//! the current and the heading sensor's offset estimated (as the live twin
+//! estimates them), the velocities' process noise that of the water
 //! alone, so that a wrong profile shows in the innovations. The search runs
 //! on the logarithm of each scale, one parameter at a time (a grid, then a
 //! golden-section refinement), in rounds until no scale moves by more than
@@ -185,11 +186,14 @@ fn exact_twin(base: &DiagnoseConfig, params: VesselParams) -> DiagnoseConfig {
     }
 }
 
-/// The healthy twin's hypothesis: the current estimated, no loss.
+/// The healthy twin's hypothesis: the current and the heading sensor's
+/// offset estimated (as the live twin estimates them: an offset held at
+/// zero would be fitted into the yaw damping and the mass), no loss.
 fn healthy() -> Hypothesis {
     Hypothesis {
         current: Term::Free,
         loss: Term::Fixed([0.0, 0.0]),
+        heading_bias: Term::Free,
         ..Hypothesis::nominal()
     }
 }

@@ -262,7 +262,7 @@ pub(super) fn kinetic_pass(prep: &Prepared, hyp: &Hypothesis, opts: PassOptions<
         effects: hyp.effects,
         current: hyp.current,
         losses: hyp.loss,
-        heading_bias: Term::Off,
+        heading_bias: hyp.heading_bias,
         profile_errors: Term::Off,
     };
     // Scales of 1 leave every parameter as it is, bit for bit.
