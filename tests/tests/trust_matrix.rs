@@ -13,7 +13,7 @@
 use twin_core::twin::TwinConfig;
 use twin_tests::trust::{
     MATRIX_OTHER_DRAWS, MATRIX_OWN_DRAWS, MATRIX_SEED, Matrix, matrix_draws,
-    other_simulator_unavailable, run_matrix,
+    other_simulator_unavailable, run_matrix, with_identified_profile, with_known_antenna,
 };
 
 /// Two standard deviations cover 95 % of a normal error; the bar leaves
@@ -62,5 +62,35 @@ fn no_healthy_propeller_is_declared_fault_and_every_sigma_covers_its_truth() {
         2 * m.losses_ending_fault() >= losses,
         "{} of {losses} losses end declared FAULT\n{report}",
         m.losses_ending_fault()
+    );
+}
+
+/// `trust_matrix --identified`: a draw's vessel is identified from a
+/// healthy trial of its own before the draw, from the Otter's profile with
+/// the antenna where the draw put it. The profile it sails on is that
+/// vessel's: the antenna kept, the hull resistance found relative to the
+/// thrust (the force scale is the starting profile's), and the profile's
+/// errors known as well as the identification says.
+#[test]
+fn a_draw_sails_on_the_profile_identified_from_a_trial_of_its_vessel() {
+    let draw = matrix_draws(MATRIX_OWN_DRAWS, 0, MATRIX_SEED)
+        .into_iter()
+        .find(|d| !d.is_control() && d.lever_arm_m != [0.0, 0.0])
+        .expect("a perturbed draw with its antenna off the centre");
+    let known = with_known_antenna(TwinConfig::default(), &draw);
+    let config = with_identified_profile(known, &draw).expect("the trial identifies");
+    let otter = TwinConfig::default().kinetic;
+    assert_eq!(config.kinetic.params.antenna_m, draw.lever_arm_m);
+    let found = config.kinetic.params.linear_damping[0] / otter.params.linear_damping[0];
+    let truth = draw.vessel.surge_damping / draw.vessel.thrust;
+    assert!(
+        (found / truth - 1.0).abs() < 0.10,
+        "surge damping x{found:.3}, the vessel's over its thrust x{truth:.3} ({})",
+        draw.describe()
+    );
+    assert!(
+        config.kinetic.profile_sigma[0] < otter.profile_sigma[0],
+        "identified: {:?}",
+        config.kinetic.profile_sigma
     );
 }
