@@ -1340,6 +1340,18 @@ pub const IDENTIFICATION_SCENARIO: &str = concat!(
     "/../config/scenarios/identify_heavy-otter.toml"
 );
 
+/// [`IDENTIFICATION_SCENARIO`], read once.
+fn identification_scenario() -> Result<Scenario, String> {
+    static SHIPPED: std::sync::OnceLock<Result<Scenario, String>> = std::sync::OnceLock::new();
+    SHIPPED
+        .get_or_init(|| {
+            let text = std::fs::read_to_string(IDENTIFICATION_SCENARIO)
+                .map_err(|e| format!("{IDENTIFICATION_SCENARIO}: {e}"))?;
+            Scenario::from_toml_str(&text).map_err(|e| format!("{IDENTIFICATION_SCENARIO}: {e}"))
+        })
+        .clone()
+}
+
 /// The twin's `config` on the profile `twin identify` gives from the
 /// identification trial of `draw`'s vessel ([`identification_draw`]),
 /// starting from the Otter's with the antenna where `config` puts it:
@@ -1351,32 +1363,18 @@ pub fn with_identified_profile(config: TwinConfig, draw: &Draw) -> Result<TwinCo
     [start.gnss.antenna_forward_m, start.gnss.antenna_starboard_m] =
         config.kinetic.params.antenna_m;
     let trial = match draw.simulator {
-        Simulator::Own => {
-            let text = std::fs::read_to_string(IDENTIFICATION_SCENARIO)
-                .map_err(|e| format!("{IDENTIFICATION_SCENARIO}: {e}"))?;
-            let shipped = Scenario::from_toml_str(&text)
-                .map_err(|e| format!("{IDENTIFICATION_SCENARIO}: {e}"))?;
-            simulate_scenario(&with_draw(&healthy, shipped))
-        }
+        Simulator::Own => simulate_scenario(&with_draw(&healthy, identification_scenario()?)),
         Simulator::Other => simulate_other(&healthy)?,
     };
-    let dir = std::env::temp_dir().join(format!(
-        "twin-trust-identify-{}-{}",
-        std::process::id(),
-        draw.index
-    ));
-    std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
-    let log = dir.join("trial.jsonl");
-    std::fs::write(&log, &trial.log).map_err(|e| e.to_string())?;
-    let report = twin_cli::identify::identify_path(
-        &log,
+    let report = twin_cli::identify::identify_reader(
+        Cursor::new(&trial.log),
+        std::path::Path::new("identification-trial.jsonl"),
         twin_wire::assemble::SourceChoice::Best,
         &start,
         "identified",
         &twin_core::diagnose::IdentifyConfig::default(),
-    );
-    let _ = std::fs::remove_dir_all(&dir);
-    let report = report.map_err(|e| format!("{}: {e}", draw.describe()))?;
+    )
+    .map_err(|e| format!("{}: {e}", draw.describe()))?;
     Ok(report.identified.twin_config(config))
 }
 

@@ -3,6 +3,7 @@
 //! what the trial could not excite, the gain on the held-out part of the
 //! trial, and the identified profile as a file (docs/profiles.md).
 
+use std::io::BufRead;
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
@@ -10,7 +11,7 @@ use twin_core::diagnose::{Fallback, Identification, IdentifyConfig, identify, pr
 use twin_wire::assemble::SourceChoice;
 use twin_wire::profile::{IdentifiedProfile, VesselProfile};
 
-use crate::diagnose::{DiagnoseError, load_path};
+use crate::diagnose::{DiagnoseError, LoadedLog, load, load_path};
 
 /// Why a trial gave no profile.
 #[derive(Debug, thiserror::Error)]
@@ -86,7 +87,30 @@ pub fn identify_path(
     name: &str,
     config: &IdentifyConfig,
 ) -> Result<IdentifyReport, IdentifyError> {
-    let log = load_path(path, source)?;
+    identify_log(&load_path(path, source)?, path, start, name, config)
+}
+
+/// [`identify_path`] of a log read from `input` (named `path` in the
+/// report and in errors).
+pub fn identify_reader(
+    input: impl BufRead,
+    path: &Path,
+    source: SourceChoice,
+    start: &VesselProfile,
+    name: &str,
+    config: &IdentifyConfig,
+) -> Result<IdentifyReport, IdentifyError> {
+    identify_log(&load(input, path, source)?, path, start, name, config)
+}
+
+/// The identification of the loaded `log` of the trial at `path`.
+fn identify_log(
+    log: &LoadedLog,
+    path: &Path,
+    start: &VesselProfile,
+    name: &str,
+    config: &IdentifyConfig,
+) -> Result<IdentifyReport, IdentifyError> {
     let not_a_trial = || IdentifyError::NotATrial {
         path: path.to_path_buf(),
     };
