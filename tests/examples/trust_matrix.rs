@@ -129,10 +129,10 @@ fn print_seeds(
     );
     println!();
     println!(
-        "| seed | draws | healthy propellers | false FAULTs | losses >= 0.15 | not declared in time | flapping | late onsets |"
+        "| seed | draws | healthy propellers | false FAULTs | losses >= 0.15 | not declared in time | flapping | late onsets | losses ending nominal | healthy ending not_excited |"
     );
-    println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
-    let mut total = [0usize; 7];
+    println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let mut total = [0usize; 9];
     let mut failed = Vec::new();
     for seed in seeds {
         let matrix = run_matrix_with(&matrix_draws(own, other, seed), threads, |d| {
@@ -146,6 +146,8 @@ fn print_seeds(
             matrix.missed(),
             matrix.flapping(),
             matrix.late_onsets(),
+            matrix.losses_ending_nominal(),
+            matrix.healthy_ending_not_excited(),
         ];
         for (t, r) in total.iter_mut().zip(row) {
             *t += r;

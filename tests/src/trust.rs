@@ -46,7 +46,7 @@ use std::process::Command;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use twin_cli::simulate::write_jsonl;
-use twin_core::decision::ThrusterStatus;
+use twin_core::decision::{DecisionConfig, ThrusterStatus};
 use twin_core::geodesy::{LatLon, LocalFrame, NorthEast};
 use twin_core::models::otter_twin::ShaftSpeeds;
 use twin_core::sample::PropellerSpeeds;
@@ -883,6 +883,12 @@ pub struct SideScore {
     pub healthy_s: f64,
     /// FAULT declarations while healthy.
     pub false_declarations: usize,
+    /// Whether the twin published a profile mismatch that had lasted
+    /// [`DecisionConfig::mismatch_withdraw_s`] or longer.
+    pub long_mismatch: bool,
+    /// Whether it called this propeller `nominal` then (the contract
+    /// withdraws a `nominal` by that time).
+    pub nominal_under_mismatch: bool,
 }
 
 /// How one draw fared.
@@ -913,6 +919,9 @@ impl DrawScore {
             }
             if s.must_detect && s.final_status == Some(ThrusterStatus::Nominal) {
                 out.push(format!("{side}: loss ends called nominal"));
+            }
+            if s.nominal_under_mismatch {
+                out.push(format!("{side}: called nominal through a profile mismatch"));
             }
             if s.onset_error_s.is_some_and(|e| e.abs() > DETECT_WITHIN_S) {
                 out.push(format!(
@@ -979,11 +988,23 @@ fn score_side(draw: &Draw, record: &Record, i: usize) -> SideScore {
     let mut was_fault = false;
     let mut last_t: Option<f64> = None;
     let mut next_coverage_s = COVERAGE_FROM_S;
+    let mut mismatch_since_s: Option<f64> = None;
+    let withdraw_s = DecisionConfig::default().mismatch_withdraw_s;
     for sample in &record.samples {
         let t = sample.elapsed_s;
         let th = sample.report.thrusters[i];
         let truth = draw.loss_at(t)[i];
         let status = th.decision.status;
+        mismatch_since_s = sample
+            .report
+            .profile_mismatch
+            .map(|_| mismatch_since_s.unwrap_or(t));
+        // A fix later than the withdrawal, so that the sampling of the
+        // record cannot make a legal status look late.
+        if mismatch_since_s.is_some_and(|since| t - since > withdraw_s + 1.0) {
+            s.long_mismatch = true;
+            s.nominal_under_mismatch |= status == ThrusterStatus::Nominal;
+        }
         if let Some(prev) = last_t
             && truth == 0.0
         {
@@ -1097,9 +1118,39 @@ impl Matrix {
         self.final_statuses_of_losses().count()
     }
 
+    /// Propellers that lost at least [`MUST_DETECT_LOSS`] and end their
+    /// trial called nominal: a loss the twin vouches is not there.
+    pub fn losses_ending_nominal(&self) -> usize {
+        self.final_statuses_of_losses()
+            .filter(|s| *s == Some(ThrusterStatus::Nominal))
+            .count()
+    }
+
+    /// Propellers called `nominal` after a profile mismatch had lasted
+    /// [`DecisionConfig::mismatch_withdraw_s`] (the contract withdraws
+    /// it), and propellers that went through such a mismatch at all.
+    pub fn nominal_under_mismatch(&self) -> (usize, usize) {
+        self.sides().fold((0, 0), |(n, all), (_, _, s)| {
+            (
+                n + usize::from(s.nominal_under_mismatch),
+                all + usize::from(s.long_mismatch),
+            )
+        })
+    }
+
     /// Propellers that lost nothing over their trial.
     pub fn healthy_propellers(&self) -> usize {
         self.sides().filter(|(d, i, _)| d.loss[*i] == 0.0).count()
+    }
+
+    /// Propellers that lost nothing and end their trial `not_excited`: a
+    /// health the twin does not vouch for.
+    pub fn healthy_ending_not_excited(&self) -> usize {
+        self.sides()
+            .filter(|(d, i, s)| {
+                d.loss[*i] == 0.0 && s.final_status == Some(ThrusterStatus::NotExcited)
+            })
+            .count()
     }
 
     /// Draws judged.

@@ -357,6 +357,12 @@ fn on_the_otters_profile_the_heavy_vessel_raises_no_false_fault() {
                 !(healthy && *ever_fault),
                 "{scenario}: the healthy {side} propeller was declared FAULT (ends {status})"
             );
+            // Nor is a lost propeller called healthy on a profile that no
+            // longer describes the vessel: an earlier `nominal` is withdrawn.
+            assert!(
+                healthy || status != "nominal",
+                "{scenario}: the {side} propeller's loss ends called nominal"
+            );
         }
     }
     let _ = std::fs::remove_dir_all(&dir);

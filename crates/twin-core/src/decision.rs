@@ -35,6 +35,17 @@
 //! - while a thruster is not excited its status holds (a broken propeller
 //!   stays broken on a straight line); a thruster never excited is
 //!   `NotExcited`;
+//! - while the profile does not describe the vessel
+//!   ([`LossEvidence::profile_describes`] false) only evidence of a higher
+//!   level counts: a warning holds, a claim of health is not made. Once
+//!   that has lasted `mismatch_withdraw_s`, a `Nominal` status judged
+//!   before it is withdrawn to `NotExcited` (a status change, so an
+//!   alarm): whatever made the model stop explaining the vessel may be a
+//!   loss the comparison can no longer see, and a controller must not
+//!   read the earlier judgement as a measurement of now. A `Suspect` or
+//!   `Fault` holds. Once the profile describes the vessel again, the
+//!   status returns to `Nominal` where the evidence shows it, again as a
+//!   change;
 //! - where neither judgement is excited but the comparison is told weakly
 //!   (`relative_weakly_told`: its standard deviation within a wider bar),
 //!   only its evidence of a fault counts, and it must persist
@@ -98,6 +109,9 @@ pub struct DecisionConfig {
     pub weak_confirm_s: f64,
     /// How long a lower level must persist before it is declared, s.
     pub clear_s: f64,
+    /// How long the profile must fail to describe the vessel before a
+    /// `Nominal` status is withdrawn to `NotExcited`, s.
+    pub mismatch_withdraw_s: f64,
 }
 
 impl Default for DecisionConfig {
@@ -123,6 +137,7 @@ impl Default for DecisionConfig {
             suspect_confirm_s: 30.0,
             weak_confirm_s: 30.0,
             clear_s: 10.0,
+            mismatch_withdraw_s: 10.0,
         }
     }
 }
@@ -145,6 +160,11 @@ pub struct LossEvidence {
     /// Whether they tell it weakly: not excited, but within a wider bar
     /// (`KineticConfig::relative_release_sigma`).
     pub relative_weakly_told: bool,
+    /// Whether the vessel's profile describes the vessel (no
+    /// `profile_mismatch`); where it does not, only evidence of a higher
+    /// level counts, and a `Nominal` status is withdrawn after
+    /// [`DecisionConfig::mismatch_withdraw_s`].
+    pub profile_describes: bool,
 }
 
 /// A change of one thruster's status (an alarm).
@@ -161,7 +181,8 @@ pub struct StatusChange {
     /// When the evidence for it first appeared, s.
     pub onset_time_s: f64,
     /// Probability, under the estimate's normal uncertainty, that the loss is
-    /// above the suspect level (for changes up) or below it (for changes down).
+    /// above the suspect level (for changes up) or below it (for changes
+    /// down, a `Nominal` withdrawn to `NotExcited` included).
     pub confidence: f64,
 }
 
@@ -181,6 +202,11 @@ struct SideState {
     candidate: Option<(ThrusterStatus, f64)>,
     /// The last time the propeller looked healthy (module doc).
     looked_healthy_s: Option<f64>,
+    /// Since when the profile has not described the vessel, s.
+    mismatch_since_s: Option<f64>,
+    /// Whether the status is `NotExcited` because a `Nominal` one was
+    /// withdrawn: its return is then a change of its own.
+    withdrawn: bool,
 }
 
 /// The decision state for two thrusters. Plain data, so it can be saved.
@@ -198,6 +224,8 @@ impl FaultDecider {
             onset_time_s: None,
             candidate: None,
             looked_healthy_s: None,
+            mismatch_since_s: None,
+            withdrawn: false,
         };
         Self {
             config,
@@ -226,6 +254,8 @@ impl FaultDecider {
             onset_time_s: decision.onset_time_s,
             candidate: None,
             looked_healthy_s: None,
+            mismatch_since_s: None,
+            withdrawn: false,
         };
     }
 
@@ -248,18 +278,37 @@ impl FaultDecider {
             {
                 self.sides[i].looked_healthy_s = Some(time_s);
             }
+            if let Some(change) = self.track_mismatch(side, time_s, &e) {
+                changes.push(change);
+            }
             let at_fault = self.sides[i].status == ThrusterStatus::Fault;
             let Some(judged) = self.judge(&e, at_fault) else {
                 continue;
             };
             let weak = judged.weak;
             let (loss_i, sigma_i) = (judged.loss, judged.sigma);
-            let evidence = judged.level;
             let cfg = self.config;
             let st = &mut self.sides[i];
-            if st.status == ThrusterStatus::NotExcited && !weak {
-                // First time the data can tell: start from nominal.
+            // Without a profile that describes the vessel, only evidence of
+            // a higher level counts (module doc).
+            let evidence = judged
+                .level
+                .filter(|l| e.profile_describes || *l > st.status.max(ThrusterStatus::Nominal));
+            if st.status == ThrusterStatus::NotExcited && !weak && e.profile_describes {
+                // First time the data can tell: start from nominal; after a
+                // withdrawal, say so.
                 st.status = ThrusterStatus::Nominal;
+                if std::mem::take(&mut st.withdrawn) {
+                    changes.push(StatusChange {
+                        side,
+                        from: ThrusterStatus::NotExcited,
+                        to: ThrusterStatus::Nominal,
+                        time_s,
+                        onset_time_s: time_s,
+                        confidence: 1.0
+                            - normal_cdf((loss_i - cfg.suspect_loss) / sigma_i.max(1e-12)),
+                    });
+                }
             }
             let Some(level) = evidence else {
                 // In the hysteresis gap: keep the status; a pending change
@@ -307,6 +356,7 @@ impl FaultDecider {
                     since
                 };
                 st.status = level;
+                st.withdrawn = false;
                 st.onset_time_s = (level > ThrusterStatus::Nominal).then_some(onset);
                 st.candidate = None;
                 let p_above = normal_cdf((loss_i - cfg.suspect_loss) / sigma_i.max(1e-12));
@@ -321,6 +371,46 @@ impl FaultDecider {
             }
         }
         changes
+    }
+
+    /// Keeps the time since which the profile has not described the
+    /// vessel, and withdraws a `Nominal` status of `side` once that has
+    /// lasted `mismatch_withdraw_s` (module doc); the change, if any.
+    fn track_mismatch(
+        &mut self,
+        side: Side,
+        time_s: f64,
+        e: &LossEvidence,
+    ) -> Option<StatusChange> {
+        let cfg = self.config;
+        let st = &mut self.sides[side.index()];
+        if e.profile_describes {
+            st.mismatch_since_s = None;
+            return None;
+        }
+        let since = *st.mismatch_since_s.get_or_insert(time_s);
+        if st.status != ThrusterStatus::Nominal || time_s - since < cfg.mismatch_withdraw_s {
+            return None;
+        }
+        st.status = ThrusterStatus::NotExcited;
+        st.onset_time_s = None;
+        st.candidate = None;
+        st.withdrawn = true;
+        // How sure the withdrawn claim was: the probability, under the
+        // published loss, that it is below the suspect level.
+        let p_below = if e.loss.is_finite() && e.sigma.is_finite() {
+            1.0 - normal_cdf((e.loss - cfg.suspect_loss) / e.sigma.max(1e-12))
+        } else {
+            0.5
+        };
+        Some(StatusChange {
+            side,
+            from: ThrusterStatus::Nominal,
+            to: ThrusterStatus::NotExcited,
+            time_s,
+            onset_time_s: since,
+            confidence: p_below,
+        })
     }
 
     /// What the evidence `e` shows (module doc), `None` where nothing is
@@ -439,6 +529,7 @@ mod tests {
             relative_sigma: f64::NAN,
             relative_excited: false,
             relative_weakly_told: false,
+            profile_describes: true,
         }
     }
 
@@ -471,6 +562,7 @@ mod tests {
             relative_sigma: 0.02,
             relative_excited: true,
             relative_weakly_told: false,
+            profile_describes: true,
         };
         let starboard = LossEvidence {
             loss: -0.08,
@@ -480,6 +572,7 @@ mod tests {
             relative_sigma: 0.025,
             relative_excited: true,
             relative_weakly_told: false,
+            profile_describes: true,
         };
         let changes: Vec<StatusChange> = (0..60)
             .flat_map(|k| d.update(k as f64 * 0.2, [port, starboard]))
@@ -499,6 +592,7 @@ mod tests {
             relative_sigma: 0.02,
             relative_excited: true,
             relative_weakly_told: false,
+            profile_describes: true,
         };
         let changes: Vec<StatusChange> = (0..60)
             .flat_map(|k| d.update(k as f64 * 0.2, [common, common]))
@@ -669,6 +763,7 @@ mod tests {
             relative_sigma: 0.08,
             relative_excited: false,
             relative_weakly_told: true,
+            profile_describes: true,
         }
     }
 
@@ -701,6 +796,69 @@ mod tests {
         assert!(feed(&mut d, 100, 101, 0.1).is_empty());
         assert!(feed(&mut d, 101, 200, 0.3).is_empty());
         assert_eq!(d.decision(Side::Port).status, ThrusterStatus::NotExcited);
+    }
+
+    /// Told nominal, then the profile stops describing the vessel: the
+    /// health is withdrawn after `mismatch_withdraw_s` and not claimed
+    /// again until the profile describes it; a fault holds throughout.
+    #[test]
+    fn a_profile_mismatch_withdraws_a_health_claim_and_holds_a_fault() {
+        let cfg = DecisionConfig::default();
+        let mut d = FaultDecider::new(cfg);
+        let at = |loss: f64, describes: bool| LossEvidence {
+            profile_describes: describes,
+            ..absolute(loss, 0.02, true)
+        };
+        let feed = |d: &mut FaultDecider, from: usize, to: usize, port: f64, describes: bool| {
+            (from..to)
+                .flat_map(|k| d.update(k as f64 * 0.2, [at(port, describes), at(0.0, describes)]))
+                .collect::<Vec<_>>()
+        };
+        // Nominal while the profile describes the vessel (0-20 s).
+        assert!(feed(&mut d, 0, 100, 0.0, true).is_empty());
+        assert_eq!(d.decision(Side::Port).status, ThrusterStatus::Nominal);
+        // From 20 s it does not, and the estimate still reads healthy: the
+        // claim holds 10 s, then both sides are withdrawn at once.
+        let c = feed(&mut d, 100, 149, 0.0, false);
+        assert!(c.is_empty(), "{c:?}");
+        let c = feed(&mut d, 149, 151, 0.0, false);
+        assert_eq!(c.len(), 2, "{c:?}");
+        for change in &c {
+            assert_eq!(
+                (change.from, change.to),
+                (ThrusterStatus::Nominal, ThrusterStatus::NotExcited)
+            );
+            assert!((change.time_s - 30.0).abs() < 1e-9, "{change:?}");
+            assert!((change.onset_time_s - 20.0).abs() < 1e-9, "{change:?}");
+        }
+        // Healthy readings under the mismatch claim nothing.
+        assert!(feed(&mut d, 151, 300, 0.0, false).is_empty());
+        assert_eq!(d.decision(Side::Port).status, ThrusterStatus::NotExcited);
+        // The profile describes the vessel again: nominal, said as a change.
+        let c = feed(&mut d, 300, 301, 0.0, true);
+        assert_eq!(c.len(), 2, "{c:?}");
+        assert!(
+            c.iter()
+                .all(|x| (x.from, x.to) == (ThrusterStatus::NotExcited, ThrusterStatus::Nominal))
+        );
+
+        // A fault declared before the mismatch holds through it, even where
+        // the estimate then reads healthy, and a suspect is not stepped down.
+        let mut d = FaultDecider::new(cfg);
+        feed(&mut d, 0, 100, 0.3, true);
+        assert_eq!(d.decision(Side::Port).status, ThrusterStatus::Fault);
+        let c = feed(&mut d, 100, 400, 0.0, false);
+        assert_eq!(d.decision(Side::Port).status, ThrusterStatus::Fault);
+        assert!(c.iter().all(|x| x.side == Side::Starboard), "{c:?}");
+        // Evidence of a fault still counts under the mismatch.
+        let mut d = FaultDecider::new(cfg);
+        feed(&mut d, 0, 100, 0.0, true);
+        let c = feed(&mut d, 100, 130, 0.3, false);
+        assert_eq!(
+            d.decision(Side::Port).status,
+            ThrusterStatus::Fault,
+            "{c:?}"
+        );
     }
 
     #[test]

@@ -963,6 +963,7 @@ impl VesselTwin {
                     relative_sigma: t.relative_sigma,
                     relative_excited: t.relative_excited,
                     relative_weakly_told: t.relative_weakly_told,
+                    profile_describes: faults.profile_mismatch.is_none(),
                 });
                 self.kinetic.comparison_told = faults.thrusters[0].relative_excited;
                 self.decider.update(fix.time_s, evidence)

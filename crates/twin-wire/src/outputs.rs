@@ -167,7 +167,8 @@ pub struct ThrusterMessage {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ThrusterStatusName {
-    /// The data have not yet been able to tell.
+    /// The data have not yet been able to tell, or a `nominal` was
+    /// withdrawn because the profile no longer describes the vessel.
     NotExcited,
     /// No loss.
     Nominal,
@@ -216,7 +217,8 @@ pub struct FaultMessage {
     /// Port and starboard.
     pub thrusters: Thrusters,
     /// The worst thruster status: `nominal`, `suspect` or `fault`
-    /// (`not_excited` until the data have told anything).
+    /// (`not_excited` until the data have told anything, or while a
+    /// profile that no longer describes the vessel withdraws a `nominal`).
     pub status: ThrusterStatusName,
     /// True while both thrusters' losses can be told from recent data.
     pub excited: bool,
@@ -438,7 +440,9 @@ pub struct AlarmMessage {
     /// When the evidence first appeared, RFC 3339.
     pub onset: String,
     /// How sure: the probability, under the estimate's uncertainty, that the
-    /// loss is on the side of the suspect level the change says.
+    /// loss is on the side of the suspect level the change says (for a
+    /// `nominal` withdrawn to `not_excited`, below it: how sure the claim
+    /// withdrawn was).
     pub confidence: f64,
     /// True when the inputs were replayed from a log.
     pub replay: bool,
