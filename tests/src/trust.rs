@@ -1319,7 +1319,7 @@ impl Matrix {
         let _ = writeln!(out);
         let _ = writeln!(
             out,
-            "sigma coverage (|loss - truth| <= 2 sigma) {:.3}, of the relative loss {:.3}; forecast band coverage (2 sigma per axis) at {}; false FAULTs per hour of healthy operation {:.2}; false FAULT {}, missed {}, flapping {}, late onset {}",
+            "sigma coverage (|loss - truth| <= 2 sigma) {:.3}, of the relative loss {:.3}; forecast band coverage (2 sigma per axis) at {}; false FAULTs per hour of healthy operation {:.2}; false FAULT {}, missed {}, flapping {}, late onset {}; called nominal {:.0} s into a profile mismatch {} (of {} propellers through one)",
             self.sigma_coverage(),
             self.relative_sigma_coverage(),
             HORIZONS_S
@@ -1332,6 +1332,9 @@ impl Matrix {
             self.missed(),
             self.flapping(),
             self.late_onsets(),
+            DecisionConfig::default().mismatch_withdraw_s,
+            self.nominal_under_mismatch().0,
+            self.nominal_under_mismatch().1,
         );
         let [du, dr, dk] = self.profile_error_coverage();
         let _ = writeln!(
