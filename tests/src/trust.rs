@@ -1316,6 +1316,7 @@ impl Matrix {
                 counts[0], counts[1], counts[2], counts[3]
             );
         }
+        let (nominal_under_mismatch, through_mismatch) = self.nominal_under_mismatch();
         let _ = writeln!(out);
         let _ = writeln!(
             out,
@@ -1333,8 +1334,8 @@ impl Matrix {
             self.flapping(),
             self.late_onsets(),
             DecisionConfig::default().mismatch_withdraw_s,
-            self.nominal_under_mismatch().0,
-            self.nominal_under_mismatch().1,
+            nominal_under_mismatch,
+            through_mismatch,
         );
         let [du, dr, dk] = self.profile_error_coverage();
         let _ = writeln!(

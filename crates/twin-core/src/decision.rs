@@ -142,6 +142,15 @@ impl Default for DecisionConfig {
     }
 }
 
+impl DecisionConfig {
+    /// The probability, under a normal uncertainty `sigma`, that a loss
+    /// estimated at `loss` is above the suspect level: a status change's
+    /// confidence ([`StatusChange::confidence`]).
+    fn probability_above_suspect(&self, loss: f64, sigma: f64) -> f64 {
+        normal_cdf((loss - self.suspect_loss) / sigma.max(1e-12))
+    }
+}
+
 /// What the estimate says of one propeller's loss.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LossEvidence {
@@ -305,8 +314,7 @@ impl FaultDecider {
                         to: ThrusterStatus::Nominal,
                         time_s,
                         onset_time_s: time_s,
-                        confidence: 1.0
-                            - normal_cdf((loss_i - cfg.suspect_loss) / sigma_i.max(1e-12)),
+                        confidence: 1.0 - cfg.probability_above_suspect(loss_i, sigma_i),
                     });
                 }
             }
@@ -359,7 +367,7 @@ impl FaultDecider {
                 st.withdrawn = false;
                 st.onset_time_s = (level > ThrusterStatus::Nominal).then_some(onset);
                 st.candidate = None;
-                let p_above = normal_cdf((loss_i - cfg.suspect_loss) / sigma_i.max(1e-12));
+                let p_above = cfg.probability_above_suspect(loss_i, sigma_i);
                 changes.push(StatusChange {
                     side,
                     from,
@@ -399,7 +407,7 @@ impl FaultDecider {
         // How sure the withdrawn claim was: the probability, under the
         // published loss, that it is below the suspect level.
         let p_below = if e.loss.is_finite() && e.sigma.is_finite() {
-            1.0 - normal_cdf((e.loss - cfg.suspect_loss) / e.sigma.max(1e-12))
+            1.0 - cfg.probability_above_suspect(e.loss, e.sigma)
         } else {
             0.5
         };
