@@ -36,8 +36,11 @@
 //!   stays broken on a straight line); a thruster never excited is
 //!   `NotExcited`;
 //! - while the profile does not describe the vessel
-//!   ([`LossEvidence::profile_describes`] false) only evidence of a higher
-//!   level counts: a warning holds, a claim of health is not made. Once
+//!   ([`LossEvidence::profile_describes`] false) no evidence counts: a
+//!   warning holds, and neither a claim of health nor a new warning is
+//!   read off a model that no longer explains the vessel (a filter whose
+//!   mass error had run to four times the profile's read a loss of
+//!   1.0 +- 0.1 on a healthy propeller, docs/model.md section 10). Once
 //!   that has lasted `mismatch_withdraw_s`, a `Nominal` status judged
 //!   before it is withdrawn to `NotExcited` (a status change, so an
 //!   alarm): whatever made the model stop explaining the vessel may be a
@@ -170,8 +173,8 @@ pub struct LossEvidence {
     /// (`KineticConfig::relative_release_sigma`).
     pub relative_weakly_told: bool,
     /// Whether the vessel's profile describes the vessel (no
-    /// `profile_mismatch`); where it does not, only evidence of a higher
-    /// level counts, and a `Nominal` status is withdrawn after
+    /// `profile_mismatch`); where it does not, no evidence counts, and a
+    /// `Nominal` status is withdrawn after
     /// [`DecisionConfig::mismatch_withdraw_s`].
     pub profile_describes: bool,
 }
@@ -298,11 +301,9 @@ impl FaultDecider {
             let (loss_i, sigma_i) = (judged.loss, judged.sigma);
             let cfg = self.config;
             let st = &mut self.sides[i];
-            // Without a profile that describes the vessel, only evidence of
-            // a higher level counts (module doc).
-            let evidence = judged
-                .level
-                .filter(|l| e.profile_describes || *l > st.status.max(ThrusterStatus::Nominal));
+            // Without a profile that describes the vessel, no evidence
+            // counts (module doc).
+            let evidence = judged.level.filter(|_| e.profile_describes);
             if st.status == ThrusterStatus::NotExcited && !weak && e.profile_describes {
                 // First time the data can tell: start from nominal; after a
                 // withdrawal, say so.
@@ -808,7 +809,8 @@ mod tests {
 
     /// Told nominal, then the profile stops describing the vessel: the
     /// health is withdrawn after `mismatch_withdraw_s` and not claimed
-    /// again until the profile describes it; a fault holds throughout.
+    /// again until the profile describes it; a fault holds throughout, and
+    /// none is raised.
     #[test]
     fn a_profile_mismatch_withdraws_a_health_claim_and_holds_a_fault() {
         let cfg = DecisionConfig::default();
@@ -858,15 +860,20 @@ mod tests {
         let c = feed(&mut d, 100, 400, 0.0, false);
         assert_eq!(d.decision(Side::Port).status, ThrusterStatus::Fault);
         assert!(c.iter().all(|x| x.side == Side::Starboard), "{c:?}");
-        // Evidence of a fault still counts under the mismatch.
+        // Nor is a fault read off the model under the mismatch: the claim
+        // of health is withdrawn, no warning is raised.
         let mut d = FaultDecider::new(cfg);
         feed(&mut d, 0, 100, 0.0, true);
-        let c = feed(&mut d, 100, 130, 0.3, false);
-        assert_eq!(
-            d.decision(Side::Port).status,
-            ThrusterStatus::Fault,
+        let c = feed(&mut d, 100, 250, 0.3, false);
+        assert_eq!(d.decision(Side::Port).status, ThrusterStatus::NotExcited);
+        assert!(
+            c.iter().all(|x| x.to == ThrusterStatus::NotExcited),
             "{c:?}"
         );
+        // Once the profile describes the vessel again, the same evidence
+        // is a fault.
+        feed(&mut d, 250, 300, 0.3, true);
+        assert_eq!(d.decision(Side::Port).status, ThrusterStatus::Fault);
     }
 
     #[test]

@@ -84,7 +84,12 @@ pub struct KineticConfig {
     /// while the yaw rate over the filter's memory is either near zero (a
     /// straight run: `rms(r) <= straight_yaw_rate_radps`, where the yaw
     /// damping moment vanishes) or spread: `std(r) >= min_yaw_rate_spread
-    /// rms(r)`, the yaw balance seen at rates unlike each other.
+    /// rms(r)`, the yaw balance seen at rates unlike each other. At 0.8
+    /// (`|mean(r)| <= 0.6 rms(r)`) a straight leg and one turn are not
+    /// enough: the damping moment is odd in `r` and a loss's is not, so
+    /// what separates them robustly, on a vessel whose unmodelled sway
+    /// damping, cross-flow drag and added mass also load the yaw balance,
+    /// is turning both ways (docs/model.md section 10).
     pub min_yaw_rate_spread: f64,
     /// The yaw rate below which a run counts as straight for
     /// [`Self::min_yaw_rate_spread`], rad/s.
@@ -212,7 +217,7 @@ impl KineticConfig {
             relative_excitation_sigma: 0.07,
             relative_release_sigma: 0.10,
             min_heading_spread: 0.05,
-            min_yaw_rate_spread: 0.5,
+            min_yaw_rate_spread: 0.8,
             straight_yaw_rate_radps: 0.02,
             plausible_profile_sigmas: 2.5,
             max_explained_nis_per_dof: 2.0,
