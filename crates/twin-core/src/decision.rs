@@ -39,8 +39,8 @@
 //!   ([`LossEvidence::profile_describes`] false) no evidence counts: a
 //!   warning holds, and neither a claim of health nor a new warning is
 //!   read off a model that no longer explains the vessel (a filter whose
-//!   mass error had run to four times the profile's read a loss of
-//!   1.0 +- 0.1 on a healthy propeller, docs/model.md section 10). Once
+//!   mass had run to 4.7 times the profile's read a loss of 1.0 +- 0.1
+//!   on a healthy propeller, docs/model.md section 10). Once
 //!   that has lasted `mismatch_withdraw_s`, a `Nominal` status judged
 //!   before it is withdrawn to `NotExcited` (a status change, so an
 //!   alarm): whatever made the model stop explaining the vessel may be a
