@@ -49,6 +49,15 @@ fn no_healthy_propeller_is_declared_fault_and_every_sigma_covers_its_truth() {
         mismatched > 0,
         "no draw went through a profile mismatch: the check above proves nothing"
     );
+    // Nor is a loss left called healthy: a `nominal` the unexcited
+    // estimate contradicts is withdrawn, and a first judgement in the
+    // hysteresis gap is no `nominal` (`twin_core::decision`); without
+    // those rules two losses of these draws end their trial `nominal`.
+    assert_eq!(
+        m.losses_ending_nominal(),
+        0,
+        "losses of 15 % or more ending nominal\n{report}\n{failures}"
+    );
     assert!(
         m.sigma_coverage() >= COVERAGE_BAR,
         "loss sigma coverage {:.3}\n{report}",

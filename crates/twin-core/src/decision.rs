@@ -34,7 +34,20 @@
 //!   better than two; nothing acts on a suspect, so waiting costs little;
 //! - while a thruster is not excited its status holds (a broken propeller
 //!   stays broken on a straight line); a thruster never excited is
-//!   `NotExcited`;
+//!   `NotExcited`, and so is one whose evidence has not yet shown health
+//!   or worse: told for the first time with its estimate in the gap (a
+//!   loss of 0.17 +- 0.08 from the start), it is not `Nominal`;
+//! - but a `Nominal` holds only while the estimate does not contradict
+//!   it: once the estimate the data do not excite (its loss, or its loss
+//!   relative to the other, also where only weakly told) has shown a
+//!   suspect or a fault by the rules above for `clear_s`, the `Nominal` is
+//!   withdrawn to `NotExcited` (a status change, so an alarm). A propeller
+//!   judged healthy before a steady turn one way, whose loss the turn
+//!   then shows but cannot tell from a yaw damping error (0.35 +- 0.05),
+//!   is not published `nominal` beside it; nor is a warning raised, which
+//!   needs the data to tell (or the weak rule below). Told again, the
+//!   status goes to the level the evidence shows, from `NotExcited`, and
+//!   to `Nominal` only where the evidence shows that;
 //! - while the profile does not describe the vessel
 //!   ([`LossEvidence::profile_describes`] false) no evidence counts: a
 //!   warning holds, and neither a claim of health nor a new warning is
@@ -216,6 +229,9 @@ struct SideState {
     looked_healthy_s: Option<f64>,
     /// Since when the profile has not described the vessel, s.
     mismatch_since_s: Option<f64>,
+    /// Since when a `Nominal` status has been contradicted by an estimate
+    /// the data no longer excite ([`FaultDecider::track_contradiction`]), s.
+    contradicted_since_s: Option<f64>,
     /// Whether the status is `NotExcited` because a `Nominal` one was
     /// withdrawn: its return is then a change of its own.
     withdrawn: bool,
@@ -237,6 +253,7 @@ impl FaultDecider {
             candidate: None,
             looked_healthy_s: None,
             mismatch_since_s: None,
+            contradicted_since_s: None,
             withdrawn: false,
         };
         Self {
@@ -267,6 +284,7 @@ impl FaultDecider {
             candidate: None,
             looked_healthy_s: None,
             mismatch_since_s: None,
+            contradicted_since_s: None,
             withdrawn: false,
         };
     }
@@ -294,7 +312,11 @@ impl FaultDecider {
                 changes.push(change);
             }
             let at_fault = self.sides[i].status == ThrusterStatus::Fault;
-            let Some(judged) = self.judge(&e, at_fault) else {
+            let judged = self.judge(&e, at_fault);
+            if let Some(change) = self.track_contradiction(side, time_s, &e, judged.as_ref()) {
+                changes.push(change);
+            }
+            let Some(judged) = judged else {
                 continue;
             };
             let weak = judged.weak;
@@ -304,9 +326,13 @@ impl FaultDecider {
             // Without a profile that describes the vessel, no evidence
             // counts (module doc).
             let evidence = judged.level.filter(|_| e.profile_describes);
-            if st.status == ThrusterStatus::NotExcited && !weak && e.profile_describes {
-                // First time the data can tell: start from nominal; after a
-                // withdrawal, say so.
+            if st.status == ThrusterStatus::NotExcited
+                && !weak
+                && evidence == Some(ThrusterStatus::Nominal)
+            {
+                // The data tell, and show health: nominal at once (after a
+                // withdrawal, say so). Evidence of worse goes from
+                // `NotExcited` to its level, and none keeps `NotExcited`.
                 st.status = ThrusterStatus::Nominal;
                 if std::mem::take(&mut st.withdrawn) {
                     changes.push(StatusChange {
@@ -419,6 +445,61 @@ impl FaultDecider {
             time_s,
             onset_time_s: since,
             confidence: p_below,
+        })
+    }
+
+    /// Withdraws a `Nominal` status of `side` to `NotExcited` once the
+    /// estimate, while the data do not excite it (`judged` `None`, or weak),
+    /// has shown a suspect or a fault for `clear_s` (module doc); the
+    /// change, if any.
+    fn track_contradiction(
+        &mut self,
+        side: Side,
+        time_s: f64,
+        e: &LossEvidence,
+        judged: Option<&Judged>,
+    ) -> Option<StatusChange> {
+        let cfg = self.config;
+        let told = judged.is_some_and(|j| !j.weak);
+        let shows_worse = |loss: f64, sigma: f64| {
+            loss.is_finite()
+                && sigma.is_finite()
+                && self
+                    .evidence(loss, sigma, false)
+                    .is_some_and(|l| l > ThrusterStatus::Nominal)
+        };
+        let relative_worse = shows_worse(e.relative_loss, e.relative_sigma);
+        let contradicted =
+            !told && e.profile_describes && (relative_worse || shows_worse(e.loss, e.sigma));
+        let st = &mut self.sides[side.index()];
+        if !contradicted || st.status != ThrusterStatus::Nominal {
+            st.contradicted_since_s = None;
+            return None;
+        }
+        let since = *st.contradicted_since_s.get_or_insert(time_s);
+        if time_s - since < cfg.clear_s {
+            return None;
+        }
+        // A pending warning keeps its clock: the estimate that withdraws
+        // the claim of health may be the one confirming a fault.
+        st.status = ThrusterStatus::NotExcited;
+        st.onset_time_s = None;
+        st.contradicted_since_s = None;
+        st.withdrawn = true;
+        // How sure the withdrawn claim still is, under the estimate that
+        // contradicts it.
+        let (loss, sigma) = if relative_worse {
+            (e.relative_loss, e.relative_sigma)
+        } else {
+            (e.loss, e.sigma)
+        };
+        Some(StatusChange {
+            side,
+            from: ThrusterStatus::Nominal,
+            to: ThrusterStatus::NotExcited,
+            time_s,
+            onset_time_s: since,
+            confidence: 1.0 - cfg.probability_above_suspect(loss, sigma),
         })
     }
 
@@ -676,12 +757,109 @@ mod tests {
         assert!((c[0].time_s - 30.0).abs() < 0.05, "{:?}", c[0]);
     }
 
+    /// A `nominal` judged while the data told the loss is withdrawn once
+    /// the estimate, no longer excited, has shown a suspect for 10 s (a
+    /// steady turn one way with a loss from its start: the comparison is
+    /// not told, yet reads 0.35 +- 0.05); one that wanders within the
+    /// nominal band, or beyond it for less than 10 s, holds. Told again, a
+    /// fault goes from `not_excited` straight to `fault`.
+    #[test]
+    fn a_nominal_the_unexcited_estimate_contradicts_is_withdrawn() {
+        let mut d = FaultDecider::new(DecisionConfig::default());
+        run(&mut d, &[(0.0, 0.0, 0.01, true), (1.0, 0.0, 0.01, true)]);
+        assert_eq!(d.decision(Side::Port).status, ThrusterStatus::Nominal);
+        // Within the band, and beyond it for 9 s: nothing.
+        let mut series: Vec<_> = (20..100)
+            .map(|k| (k as f64 * 0.1, 0.04, 0.05, false))
+            .collect();
+        series.extend((100..190).map(|k| (k as f64 * 0.1, 0.35, 0.05, false)));
+        series.extend((190..200).map(|k| (k as f64 * 0.1, 0.0, 0.05, false)));
+        assert!(run(&mut d, &series).is_empty());
+        assert_eq!(d.decision(Side::Port).status, ThrusterStatus::Nominal);
+        // Beyond it for 10 s: withdrawn, with how sure the claim still is.
+        let c = run(
+            &mut d,
+            &(200..310)
+                .map(|k| (k as f64 * 0.1, 0.35, 0.05, false))
+                .collect::<Vec<_>>(),
+        );
+        assert_eq!(c.len(), 1, "{c:?}");
+        assert_eq!(
+            (c[0].from, c[0].to),
+            (ThrusterStatus::Nominal, ThrusterStatus::NotExcited)
+        );
+        assert!((c[0].time_s - 30.0).abs() < 0.05, "{:?}", c[0]);
+        assert!(c[0].confidence < 1e-6, "{:?}", c[0]);
+        assert_eq!(d.decision(Side::Starboard).status, ThrusterStatus::Nominal);
+        // Told again, the loss is a fault: one change, from not_excited.
+        let c = run(
+            &mut d,
+            &(310..400)
+                .map(|k| (k as f64 * 0.1, 0.35, 0.05, true))
+                .collect::<Vec<_>>(),
+        );
+        assert_eq!(c.len(), 1, "{c:?}");
+        assert_eq!(
+            (c[0].from, c[0].to),
+            (ThrusterStatus::NotExcited, ThrusterStatus::Fault)
+        );
+        // Withdrawn again on a healthy propeller, told healthy again: the
+        // return to nominal is announced.
+        let mut d = FaultDecider::new(DecisionConfig::default());
+        run(&mut d, &[(0.0, 0.0, 0.01, true)]);
+        run(
+            &mut d,
+            &(10..130)
+                .map(|k| (k as f64 * 0.1, 0.2, 0.04, false))
+                .collect::<Vec<_>>(),
+        );
+        assert_eq!(d.decision(Side::Port).status, ThrusterStatus::NotExcited);
+        let c = run(&mut d, &[(13.0, 0.0, 0.01, true)]);
+        assert_eq!(c.len(), 1, "{c:?}");
+        assert_eq!(
+            (c[0].from, c[0].to),
+            (ThrusterStatus::NotExcited, ThrusterStatus::Nominal)
+        );
+    }
+
+    /// Told for the first time with the estimate in the hysteresis gap
+    /// (a loss of 0.17 +- 0.077 from the start: neither health nor a fault
+    /// at two and a half sigmas) the propeller stays `not_excited`; a
+    /// fault the data then show goes there in one change, and a healthy
+    /// propeller becomes `nominal` only once its evidence shows it.
+    #[test]
+    fn a_first_tell_that_shows_no_health_is_no_nominal() {
+        let mut d = FaultDecider::new(DecisionConfig::default());
+        let gap: Vec<_> = (0..300)
+            .map(|k| (k as f64 * 0.2, 0.17, 0.077, true))
+            .collect();
+        assert!(run(&mut d, &gap).is_empty());
+        assert_eq!(d.decision(Side::Port).status, ThrusterStatus::NotExcited);
+        assert_eq!(d.decision(Side::Starboard).status, ThrusterStatus::Nominal);
+        let c = run(
+            &mut d,
+            &(300..330)
+                .map(|k| (k as f64 * 0.2, 0.2, 0.04, true))
+                .collect::<Vec<_>>(),
+        );
+        assert_eq!(c.len(), 1, "{c:?}");
+        assert_eq!(
+            (c[0].from, c[0].to),
+            (ThrusterStatus::NotExcited, ThrusterStatus::Fault)
+        );
+        let mut d = FaultDecider::new(DecisionConfig::default());
+        run(&mut d, &gap);
+        assert!(run(&mut d, &[(61.0, 0.01, 0.03, true)]).is_empty());
+        assert_eq!(d.decision(Side::Port).status, ThrusterStatus::Nominal);
+    }
+
     #[test]
     fn level_and_time_hysteresis_prevent_chatter() {
         let mut d = FaultDecider::new(DecisionConfig::default());
-        // A noisy loss around 5 % with small sigma: hovering in the gap
-        // (0.03..0.05) never clears, and short excursions never confirm.
-        let mut series = vec![];
+        // Once told healthy, a noisy loss around 5 % with small sigma:
+        // hovering in the gap (0.03..0.05) never clears, and short
+        // excursions never confirm.
+        let mut series = vec![(-0.1, 0.0, 0.005, true)];
         for k in 0..600 {
             let t = k as f64 * 0.1;
             let loss = if k % 20 < 5 { 0.07 } else { 0.04 };

@@ -168,7 +168,8 @@ pub struct ThrusterMessage {
 #[serde(rename_all = "snake_case")]
 pub enum ThrusterStatusName {
     /// The data have not yet been able to tell, or a `nominal` was
-    /// withdrawn because the profile no longer describes the vessel.
+    /// withdrawn: the profile no longer describes the vessel, or the loss,
+    /// no longer told, has moved out of the nominal band.
     NotExcited,
     /// No loss.
     Nominal,
@@ -218,7 +219,8 @@ pub struct FaultMessage {
     pub thrusters: Thrusters,
     /// The worst thruster status: `nominal`, `suspect` or `fault`
     /// (`not_excited` until the data have told anything, or while a
-    /// profile that no longer describes the vessel withdraws a `nominal`).
+    /// `nominal` is withdrawn: a profile that no longer describes the
+    /// vessel, or a loss no longer told that has left the nominal band).
     pub status: ThrusterStatusName,
     /// True while both thrusters' losses can be told from recent data.
     pub excited: bool,
