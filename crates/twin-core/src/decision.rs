@@ -757,6 +757,26 @@ mod tests {
         assert!((c[0].time_s - 30.0).abs() < 0.05, "{:?}", c[0]);
     }
 
+    /// `(time s, loss, sigma, excited)` held from step `ticks.start` to
+    /// `ticks.end` (exclusive), `step_s` apart.
+    fn steady(
+        ticks: std::ops::Range<u32>,
+        step_s: f64,
+        loss: f64,
+        sigma: f64,
+        excited: bool,
+    ) -> Vec<(f64, f64, f64, bool)> {
+        ticks
+            .map(|k| (f64::from(k) * step_s, loss, sigma, excited))
+            .collect()
+    }
+
+    /// `changes` is one change, `from` to `to`.
+    fn assert_one_change(changes: &[StatusChange], from: ThrusterStatus, to: ThrusterStatus) {
+        assert_eq!(changes.len(), 1, "{changes:?}");
+        assert_eq!((changes[0].from, changes[0].to), (from, to));
+    }
+
     /// A `nominal` judged while the data told the loss is withdrawn once
     /// the estimate, no longer excited, has shown a suspect for 10 s (a
     /// steady turn one way with a loss from its start: the comparison is
@@ -769,57 +789,28 @@ mod tests {
         run(&mut d, &[(0.0, 0.0, 0.01, true), (1.0, 0.0, 0.01, true)]);
         assert_eq!(d.decision(Side::Port).status, ThrusterStatus::Nominal);
         // Within the band, and beyond it for 9 s: nothing.
-        let mut series: Vec<_> = (20..100)
-            .map(|k| (k as f64 * 0.1, 0.04, 0.05, false))
-            .collect();
-        series.extend((100..190).map(|k| (k as f64 * 0.1, 0.35, 0.05, false)));
-        series.extend((190..200).map(|k| (k as f64 * 0.1, 0.0, 0.05, false)));
+        let mut series = steady(20..100, 0.1, 0.04, 0.05, false);
+        series.extend(steady(100..190, 0.1, 0.35, 0.05, false));
+        series.extend(steady(190..200, 0.1, 0.0, 0.05, false));
         assert!(run(&mut d, &series).is_empty());
         assert_eq!(d.decision(Side::Port).status, ThrusterStatus::Nominal);
         // Beyond it for 10 s: withdrawn, with how sure the claim still is.
-        let c = run(
-            &mut d,
-            &(200..310)
-                .map(|k| (k as f64 * 0.1, 0.35, 0.05, false))
-                .collect::<Vec<_>>(),
-        );
-        assert_eq!(c.len(), 1, "{c:?}");
-        assert_eq!(
-            (c[0].from, c[0].to),
-            (ThrusterStatus::Nominal, ThrusterStatus::NotExcited)
-        );
+        let c = run(&mut d, &steady(200..310, 0.1, 0.35, 0.05, false));
+        assert_one_change(&c, ThrusterStatus::Nominal, ThrusterStatus::NotExcited);
         assert!((c[0].time_s - 30.0).abs() < 0.05, "{:?}", c[0]);
         assert!(c[0].confidence < 1e-6, "{:?}", c[0]);
         assert_eq!(d.decision(Side::Starboard).status, ThrusterStatus::Nominal);
         // Told again, the loss is a fault: one change, from not_excited.
-        let c = run(
-            &mut d,
-            &(310..400)
-                .map(|k| (k as f64 * 0.1, 0.35, 0.05, true))
-                .collect::<Vec<_>>(),
-        );
-        assert_eq!(c.len(), 1, "{c:?}");
-        assert_eq!(
-            (c[0].from, c[0].to),
-            (ThrusterStatus::NotExcited, ThrusterStatus::Fault)
-        );
+        let c = run(&mut d, &steady(310..400, 0.1, 0.35, 0.05, true));
+        assert_one_change(&c, ThrusterStatus::NotExcited, ThrusterStatus::Fault);
         // Withdrawn again on a healthy propeller, told healthy again: the
         // return to nominal is announced.
         let mut d = FaultDecider::new(DecisionConfig::default());
         run(&mut d, &[(0.0, 0.0, 0.01, true)]);
-        run(
-            &mut d,
-            &(10..130)
-                .map(|k| (k as f64 * 0.1, 0.2, 0.04, false))
-                .collect::<Vec<_>>(),
-        );
+        run(&mut d, &steady(10..130, 0.1, 0.2, 0.04, false));
         assert_eq!(d.decision(Side::Port).status, ThrusterStatus::NotExcited);
         let c = run(&mut d, &[(13.0, 0.0, 0.01, true)]);
-        assert_eq!(c.len(), 1, "{c:?}");
-        assert_eq!(
-            (c[0].from, c[0].to),
-            (ThrusterStatus::NotExcited, ThrusterStatus::Nominal)
-        );
+        assert_one_change(&c, ThrusterStatus::NotExcited, ThrusterStatus::Nominal);
     }
 
     /// Told for the first time with the estimate in the hysteresis gap
@@ -830,23 +821,12 @@ mod tests {
     #[test]
     fn a_first_tell_that_shows_no_health_is_no_nominal() {
         let mut d = FaultDecider::new(DecisionConfig::default());
-        let gap: Vec<_> = (0..300)
-            .map(|k| (k as f64 * 0.2, 0.17, 0.077, true))
-            .collect();
+        let gap = steady(0..300, 0.2, 0.17, 0.077, true);
         assert!(run(&mut d, &gap).is_empty());
         assert_eq!(d.decision(Side::Port).status, ThrusterStatus::NotExcited);
         assert_eq!(d.decision(Side::Starboard).status, ThrusterStatus::Nominal);
-        let c = run(
-            &mut d,
-            &(300..330)
-                .map(|k| (k as f64 * 0.2, 0.2, 0.04, true))
-                .collect::<Vec<_>>(),
-        );
-        assert_eq!(c.len(), 1, "{c:?}");
-        assert_eq!(
-            (c[0].from, c[0].to),
-            (ThrusterStatus::NotExcited, ThrusterStatus::Fault)
-        );
+        let c = run(&mut d, &steady(300..330, 0.2, 0.2, 0.04, true));
+        assert_one_change(&c, ThrusterStatus::NotExcited, ThrusterStatus::Fault);
         let mut d = FaultDecider::new(DecisionConfig::default());
         run(&mut d, &gap);
         assert!(run(&mut d, &[(61.0, 0.01, 0.03, true)]).is_empty());
