@@ -4,10 +4,16 @@
 //! this command's).
 //!
 //! ```text
-//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I] [--list] [--known-antenna] [--identified]
+//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I [--every S]] [--onsets] [--list] [--known-antenna] [--identified]
 //! ```
 //!
-//! `--trace I` prints what the twin published over draw `I`, every 10 s;
+//! `--trace I` prints what the twin published over draw `I`, every 10 s
+//! (every `S` s with `--every S`);
+//! `--onsets` follows each loss of 15 % or more that starts mid-trial
+//! through the 30 s after its onset (of the seed, or of each seed with
+//! `--seeds`) and prints when it was declared and what stood in the way:
+//! the profile's plausibility guard, and the relative loss, its standard
+//! deviation and whether it was told, 30 s after the onset;
 //! `--list` lists the draws; `--seeds A-B` runs the matrix of each seed
 //! from `A` to `B` and prints one row of counts per seed, with the total;
 //! `--known-antenna` gives the twin each draw's true antenna position, as
@@ -16,10 +22,11 @@
 //! from a healthy trial of the draw's vessel first
 //! (`twin_tests::trust::with_identified_profile`).
 
+use twin_core::decision::ThrusterStatus;
 use twin_core::twin::TwinConfig;
 use twin_tests::trust::{
-    Draw, MATRIX_OTHER_DRAWS, MATRIX_OWN_DRAWS, MATRIX_SEED, matrix_draws, run_matrix_with,
-    with_identified_profile, with_known_antenna,
+    DETECT_WITHIN_S, Draw, MATRIX_OTHER_DRAWS, MATRIX_OWN_DRAWS, MATRIX_SEED, MUST_DETECT_LOSS,
+    matrix_draws, run, run_matrix_with, simulate, with_identified_profile, with_known_antenna,
 };
 
 /// What the twin is told of each draw's vessel beyond the Otter's profile.
@@ -51,7 +58,9 @@ fn main() -> Result<(), String> {
     let mut threads = 2;
     let mut failures = false;
     let mut trace: Option<usize> = None;
+    let mut every_s = 10.0;
     let mut list = false;
+    let mut onsets = false;
     let mut told = Told::default();
     let mut seeds: Option<(u64, u64)> = None;
     let mut args = std::env::args().skip(1);
@@ -68,9 +77,11 @@ fn main() -> Result<(), String> {
             "--threads" => threads = value("--threads")? as usize,
             "--failures" => failures = true,
             "--list" => list = true,
+            "--onsets" => onsets = true,
             "--known-antenna" => told.antenna = true,
             "--identified" => told.identified = true,
             "--trace" => trace = Some(value("--trace")? as usize),
+            "--every" => every_s = value("--every")? as f64,
             "--seeds" => {
                 let text = args.next().unwrap_or_default();
                 let range = text
@@ -81,6 +92,10 @@ fn main() -> Result<(), String> {
             }
             _ => return Err(format!("unknown argument {a}")),
         }
+    }
+    if onsets {
+        let range = seeds.unwrap_or((seed, seed));
+        return print_onsets(own, other, range.0..=range.1, told);
     }
     if let Some((first, last)) = seeds {
         return print_seeds(own, other, first..=last, threads, failures, told);
@@ -97,7 +112,7 @@ fn main() -> Result<(), String> {
             .iter()
             .find(|d| d.index == i)
             .ok_or(format!("no draw {i}"))?;
-        return print_trace(draw, config_of(draw, told)?);
+        return print_trace(draw, config_of(draw, told)?, every_s);
     }
     let matrix = run_matrix_with(&all, threads, |d| config_of(d, told))?;
     println!(
@@ -175,7 +190,7 @@ fn print_seeds(
 }
 
 /// Prints what the twin published over `draw`, every 10 s.
-fn print_trace(draw: &Draw, config: TwinConfig) -> Result<(), String> {
+fn print_trace(draw: &Draw, config: TwinConfig, every_s: f64) -> Result<(), String> {
     println!("{}", draw.describe());
     let trial = twin_tests::trust::simulate(draw)?;
     let record = twin_tests::trust::run(&trial, config);
@@ -184,7 +199,7 @@ fn print_trace(draw: &Draw, config: TwinConfig) -> Result<(), String> {
         if s.elapsed_s < next {
             continue;
         }
-        next = s.elapsed_s.floor() + 10.0;
+        next = s.elapsed_s.floor() + every_s;
         let r = &s.report;
         let side = |k: usize| {
             let t = r.thrusters[k];
@@ -229,5 +244,151 @@ fn print_trace(draw: &Draw, config: TwinConfig) -> Result<(), String> {
             side(1)
         );
     }
+    Ok(())
+}
+
+/// What one mid-trial loss looked like over the [`DETECT_WITHIN_S`] after
+/// its onset.
+struct OnsetWindow {
+    /// The draw, described.
+    draw: String,
+    /// The loss.
+    loss: f64,
+    /// From its onset to its FAULT, s (none: never declared).
+    declared_after_s: Option<f64>,
+    /// Whether the profile's plausibility guard was out just before the
+    /// onset.
+    guard_out_before: bool,
+    /// The share of the window's reports with the guard out.
+    guard_out_share: f64,
+    /// The relative loss at the window's end, its standard deviation, and
+    /// whether it was told, or told weakly.
+    relative: (f64, f64, bool, bool),
+}
+
+/// Follows the loss of `draw` (of the matrix of `seed`; the loss must
+/// start mid-trial) through its window.
+fn onset_window(seed: u64, draw: &Draw, told: Told) -> Result<OnsetWindow, String> {
+    let trial = simulate(draw)?;
+    let record = run(&trial, config_of(draw, told)?);
+    let k = usize::from(draw.loss[0] < draw.loss[1]);
+    let onset_s = draw.onset_s;
+    let end_s = onset_s + DETECT_WITHIN_S;
+    let report_at = |t: f64| {
+        record
+            .samples
+            .iter()
+            .find(|s| s.elapsed_s >= t)
+            .map(|s| s.report)
+    };
+    let window: Vec<_> = record
+        .samples
+        .iter()
+        .filter(|s| s.elapsed_s >= onset_s && s.elapsed_s <= end_s)
+        .collect();
+    let guard_out = window
+        .iter()
+        .filter(|s| s.report.profile_mismatch.is_some())
+        .count();
+    let relative = report_at(end_s)
+        .map(|r| {
+            let t = r.thrusters[k];
+            (
+                t.relative_loss,
+                t.relative_sigma,
+                t.relative_excited,
+                t.relative_weakly_told,
+            )
+        })
+        .unwrap_or((f64::NAN, f64::NAN, false, false));
+    Ok(OnsetWindow {
+        draw: format!("matrix seed {seed}, {}", draw.describe()),
+        loss: draw.loss[k],
+        declared_after_s: record
+            .samples
+            .iter()
+            .find(|s| {
+                s.elapsed_s >= onset_s
+                    && s.report.thrusters[k].decision.status == ThrusterStatus::Fault
+            })
+            .map(|s| s.elapsed_s - onset_s),
+        guard_out_before: report_at(onset_s - 1.0).is_some_and(|r| r.profile_mismatch.is_some()),
+        guard_out_share: guard_out as f64 / window.len().max(1) as f64,
+        relative,
+    })
+}
+
+/// Prints [`onset_window`] for every loss of at least [`MUST_DETECT_LOSS`]
+/// that starts mid-trial in the matrices of `seeds`, and the counts.
+fn print_onsets(
+    own: usize,
+    other: usize,
+    seeds: std::ops::RangeInclusive<u64>,
+    told: Told,
+) -> Result<(), String> {
+    let draws: Vec<(u64, Draw)> = seeds
+        .flat_map(|seed| {
+            matrix_draws(own, other, seed)
+                .into_iter()
+                .map(move |d| (seed, d))
+        })
+        .filter(|(_, d)| d.onset_s > 0.0 && d.loss.iter().any(|l| *l >= MUST_DETECT_LOSS))
+        .collect();
+    let windows: Vec<OnsetWindow> = std::thread::scope(|scope| {
+        let workers: Vec<_> = draws
+            .chunks(draws.len().div_ceil(2).max(1))
+            .map(|chunk| {
+                scope.spawn(move || {
+                    chunk
+                        .iter()
+                        .map(|(seed, d)| onset_window(*seed, d, told))
+                        .collect::<Result<Vec<_>, String>>()
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .map(|w| w.join().expect("a worker finishes"))
+            .collect::<Result<Vec<Vec<_>>, String>>()
+    })?
+    .into_iter()
+    .flatten()
+    .collect();
+    println!(
+        "| draw | loss | FAULT after (s) | guard out before the onset | guard out over the {DETECT_WITHIN_S:.0} s after | relative loss {DETECT_WITHIN_S:.0} s after | told |"
+    );
+    println!("|---|---:|---:|---|---:|---|---|");
+    for w in &windows {
+        let (rel, sigma, excited, weak) = w.relative;
+        println!(
+            "| {} | {:.2} | {} | {} | {:.2} | {rel:+.3} +- {sigma:.3} | {} |",
+            w.draw,
+            w.loss,
+            w.declared_after_s
+                .map_or("never".to_string(), |d| format!("{d:.0}")),
+            if w.guard_out_before { "yes" } else { "no" },
+            w.guard_out_share,
+            if excited {
+                "yes"
+            } else if weak {
+                "weakly"
+            } else {
+                "no"
+            }
+        );
+    }
+    let count = |f: &dyn Fn(&OnsetWindow) -> bool| windows.iter().filter(|w| f(w)).count();
+    let in_time = |w: &OnsetWindow| w.declared_after_s.is_some_and(|d| d <= DETECT_WITHIN_S);
+    println!();
+    println!(
+        "{} losses starting mid-trial: FAULT within {DETECT_WITHIN_S:.0} s {}, ever {}; the guard out for most of the window {} (tripped after the onset {}); of the rest not in time, the relative loss told {} and not told {} at the window's end",
+        windows.len(),
+        count(&in_time),
+        count(&|w| w.declared_after_s.is_some()),
+        count(&|w| w.guard_out_share >= 0.5),
+        count(&|w| w.guard_out_share >= 0.5 && !w.guard_out_before),
+        count(&|w| !in_time(w) && w.guard_out_share < 0.5 && w.relative.2),
+        count(&|w| !in_time(w) && w.guard_out_share < 0.5 && !w.relative.2),
+    );
     Ok(())
 }
