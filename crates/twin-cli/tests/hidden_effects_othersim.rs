@@ -401,7 +401,14 @@ fn hidden_effects_on_changed_vessels_of_the_independent_simulator() {
         let verdict = judge_on_vessel(*h, *p, &r);
         (*i, *h, *p, verdict, named(&r))
     });
-    let control_failures = report("diagnose-perturbed-othersim", &results);
+    let misses = report("diagnose-perturbed-othersim", &results);
+    let control_failures = misses.control;
+    // The changed-vessel draws are not all required to meet the bars
+    // (docs/known-issues.md, "Diagnose"); which miss is printed.
+    println!(
+        "changed-vessel draws that miss the bars: {:?}",
+        misses.changed
+    );
     if control_failures.is_empty() {
         let _ = std::fs::remove_dir_all(&dir);
     } else {

@@ -93,10 +93,19 @@ pub type Outcome = (
     String,
 );
 
+/// The draws that miss the bars, by kind.
+pub struct Misses {
+    /// On the unchanged vessel.
+    pub control: Vec<usize>,
+    /// On a changed vessel.
+    pub changed: Vec<usize>,
+}
+
 /// Prints each draw's verdict and a summary line starting with `label`;
-/// the control draws (unchanged vessel) that miss the bars.
-pub fn report(label: &str, results: &[Outcome]) -> Vec<usize> {
+/// the draws that miss the bars.
+pub fn report(label: &str, results: &[Outcome]) -> Misses {
     let mut control_failures = Vec::new();
+    let mut changed_failures = Vec::new();
     let (mut right, mut named_change) = (0, 0);
     for (i, h, p, verdict, summary) in results {
         println!(
@@ -114,7 +123,8 @@ pub fn report(label: &str, results: &[Outcome]) -> Vec<usize> {
                 named_change += usize::from(*n);
             }
             (Err(_), None) => control_failures.push(*i),
-            _ => {}
+            (Err(_), Some(_)) => changed_failures.push(*i),
+            (Ok(_), None) => {}
         }
     }
     let changed = results.iter().filter(|r| r.2.is_some()).count();
@@ -123,5 +133,8 @@ pub fn report(label: &str, results: &[Outcome]) -> Vec<usize> {
         results.len() - changed - control_failures.len(),
         results.len() - changed,
     );
-    control_failures
+    Misses {
+        control: control_failures,
+        changed: changed_failures,
+    }
 }

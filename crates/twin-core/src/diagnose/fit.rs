@@ -7,6 +7,7 @@
 use super::catalogue::{
     Cause, LogKind, OUTSIDE_HULL, PlaneSearch, ScalarSearch, Search, SharedPart, StateSearch,
 };
+use super::noise_level;
 use super::pass::{AtSplit, PassOptions, PassOut, kinetic_pass, water_pass};
 use super::prepare::Prepared;
 use super::residuals::{InnovationRecord, ResidualSummary, summarise};
@@ -317,11 +318,26 @@ pub(super) fn minimise_1d(f: &dyn Fn(f64) -> f64, lo: f64, hi: f64, grid: usize)
             best = (x, v);
         }
     }
-    let (mut a, mut b) = ((best.0 - step).max(lo), (best.0 + step).min(hi));
+    let x = golden_section(f, (best.0 - step).max(lo), (best.0 + step).min(hi), 7);
+    let h = step / 4.0;
+    let curvature = (f(x + h) - 2.0 * f(x) + f(x - h)) / (h * h);
+    let sigma = if curvature > 0.0 {
+        1.0 / curvature.sqrt()
+    } else {
+        f64::INFINITY
+    };
+    (x, sigma)
+}
+
+/// The middle of the bracket left of `[lo, hi]` after `steps` steps of a
+/// golden-section search for the minimum of `f` (unimodal there): each
+/// step one evaluation, the bracket shrinking by the golden ratio.
+pub(super) fn golden_section(f: &dyn Fn(f64) -> f64, lo: f64, hi: f64, steps: usize) -> f64 {
     let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut a, mut b) = (lo, hi);
     let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
     let (mut fc, mut fd) = (f(c), f(d));
-    for _ in 0..7 {
+    for _ in 0..steps {
         if fc < fd {
             b = d;
             d = c;
@@ -336,15 +352,7 @@ pub(super) fn minimise_1d(f: &dyn Fn(f64) -> f64, lo: f64, hi: f64, grid: usize)
             fd = f(d);
         }
     }
-    let x = 0.5 * (a + b);
-    let h = step / 4.0;
-    let curvature = (f(x + h) - 2.0 * f(x) + f(x - h)) / (h * h);
-    let sigma = if curvature > 0.0 {
-        1.0 / curvature.sqrt()
-    } else {
-        f64::INFINITY
-    };
-    (x, sigma)
+    0.5 * (a + b)
 }
 
 /// A candidate fitted on the training part, as a fixed hypothesis.
@@ -1415,6 +1423,125 @@ fn shared_part_line(
     }
 }
 
+/// The dynamics causes whose sizes are fitted again under the process
+/// noise the data ask for, with their index in
+/// [`Hypothesis::profile_scales`]. Not the surge damping: it shares a ridge
+/// with the losses' common part, and a refit moves both along it.
+const REFINED_DYNAMICS: [(Cause, usize); 2] = [(Cause::YawDamping, 1), (Cause::Mass, 3)];
+/// A refined size is searched within this factor of its selected size,
+/// either way.
+const REFINE_SPAN: f64 = 1.3;
+/// At most this many rounds of the refinement ...
+const REFINE_ROUNDS: usize = 3;
+/// ... which stops once no size moved by more than this in a round.
+const REFINE_SETTLED: f64 = 0.005;
+
+/// Fits the sizes of the yaw damping and mass findings again under the
+/// velocity process noise whose level, per axis, the training likelihood
+/// prefers with every finding in the model ([`super::noise_level`]); the
+/// model takes the refined sizes, and a finding whose refined size falls
+/// below its practical bar is dropped with the reason. The fixed search
+/// noise biases those sizes: a faster-contracting model shrinks the
+/// innovation covariances, which the likelihood rewards where the noise
+/// is larger than the data's.
+fn refine_dynamics_sizes(
+    ctx: &Ctx<'_>,
+    model: &mut Accepted,
+    findings: &mut Vec<Finding>,
+    rejected: &mut Vec<Rejected>,
+) {
+    let refined: Vec<(Cause, usize)> = REFINED_DYNAMICS
+        .into_iter()
+        .filter(|(cause, _)| findings.iter().any(|f| f.cause == *cause))
+        .collect();
+    if refined.is_empty() || ctx.base != BaseModel::Kinetic {
+        return;
+    }
+    let training_nll =
+        |config: &DiagnoseConfig, hyp: &Hypothesis| Ctx { config, ..*ctx }.train_nll(hyp);
+    // Coordinate ascent on the joint likelihood: the levels with the
+    // sizes held, then the sizes with the levels held, until the sizes
+    // settle.
+    let mut hyp = model.hypothesis;
+    let mut sizes = Vec::new();
+    let mut levels = [0.0; 3];
+    for round in 0..REFINE_ROUNDS {
+        let at_sizes = hyp;
+        levels = noise_level::fitted_velocity_noise_levels(
+            ctx.config,
+            levels,
+            round > 0,
+            &|c| training_nll(c, &at_sizes),
+            ctx.config.threads,
+        );
+        let at_levels = noise_level::with_velocity_noise_levels(ctx.config, levels);
+        let before = hyp.profile_scales;
+        sizes.clear();
+        for &(cause, i) in &refined {
+            let selected = model.hypothesis.profile_scales[i];
+            let nll = |v: f64| {
+                let mut h = hyp;
+                h.profile_scales[i] = v;
+                training_nll(&at_levels, &h)
+            };
+            let ((lo, hi), grid) = match &cause.spec().search {
+                Search::Scalar(s) => (s.bounds, s.grid),
+                _ => unreachable!("a profile parameter is a scalar search"),
+            };
+            let (v, sd) = minimise_1d(
+                &nll,
+                (selected / REFINE_SPAN).max(lo),
+                (selected * REFINE_SPAN).min(hi),
+                grid,
+            );
+            hyp.profile_scales[i] = v;
+            sizes.push((cause, v, sd));
+        }
+        let moved = refined
+            .iter()
+            .map(|&(_, i)| (hyp.profile_scales[i] - before[i]).abs())
+            .fold(0.0, f64::max);
+        if moved < REFINE_SETTLED {
+            break;
+        }
+    }
+    let out = ctx.pass(&hyp, false, true);
+    if out.failed {
+        return;
+    }
+    model.hypothesis = hyp;
+    model.out = out;
+    let practical = ctx.config.acceptance.min_profile_scale_error;
+    for (cause, v, sd) in sizes {
+        let Some(k) = findings.iter().position(|f| f.cause == cause) else {
+            continue;
+        };
+        for p in &mut findings[k].parameters {
+            if p.0 == "scale" {
+                (p.1, p.2) = (v, sd);
+            }
+        }
+        if (v - 1.0).abs() < practical {
+            let f = findings.remove(k);
+            model.hypothesis = without(&model.hypothesis, cause);
+            rejected.push(Rejected {
+                cause,
+                parameters: f.parameters,
+                heldout_nll_gain: f.gain.heldout_nll_gain,
+                reason: format!(
+                    "fitted under the process noise the data ask for, its size {v:.3} is below {practical}"
+                ),
+            });
+        }
+    }
+    if model.hypothesis != hyp {
+        let out = ctx.pass(&model.hypothesis, false, true);
+        if !out.failed {
+            model.out = out;
+        }
+    }
+}
+
 /// Diagnoses a prepared log.
 pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     let base = if prep.has_propellers {
@@ -1490,6 +1617,7 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     if refit_jointly(&ctx, &applicable, &mut model, &mut findings, &mut rejected) {
         drop_redundant(&ctx, &mut model, &mut findings, &mut rejected);
     }
+    refine_dynamics_sizes(&ctx, &mut model, &mut findings, &mut rejected);
     name_shared_parts(&ctx, &mut model, &mut findings);
     judge_each_against_the_rest(&ctx, &model, &mut findings);
     // A cause rejected in one round, or tried alone and with a companion,

@@ -52,7 +52,12 @@
 //!    its own in each round, and once more at the end; where the data do
 //!    not tell the two apart, the split that leaves none shared is named. A cause of the vessel's dynamics
 //!    must make the held-out forecasts better over the horizons taken
-//!    together (a steady force it only absorbs makes them worse).
+//!    together (a steady force it only absorbs makes them worse). Last,
+//!    the sizes of a yaw damping and a mass finding are fitted again
+//!    jointly with the level of the velocities' process noise per axis
+//!    (`noise_level`): the search holds that noise at the harbour water's,
+//!    and a likelihood maximised with a noise level that is not the data's
+//!    biases a dynamics parameter towards a faster-contracting hull.
 //! 6. **Report** ([`Diagnosis`]): per finding the cause, its parameters
 //!    with uncertainty, the evidence in the residuals, and the gain on
 //!    held-out data against the model with every other finding
@@ -79,6 +84,7 @@ mod catalogue;
 mod fit;
 mod identify;
 mod monitor;
+mod noise_level;
 mod pass;
 mod prepare;
 mod residuals;
