@@ -1484,10 +1484,11 @@ fn refine_dynamics_sizes(
                 h.profile_scales[i] = v;
                 training_nll(&at_levels, &h)
             };
-            let ((lo, hi), grid) = match &cause.spec().search {
-                Search::Scalar(s) => (s.bounds, s.grid),
-                _ => unreachable!("a profile parameter is a scalar search"),
+            // A profile parameter is a scalar search.
+            let Search::Scalar(search) = &cause.spec().search else {
+                continue;
             };
+            let ((lo, hi), grid) = (search.bounds, search.grid);
             let (v, sd) = minimise_1d(
                 &nll,
                 (selected / REFINE_SPAN).max(lo),
@@ -1529,7 +1530,7 @@ fn refine_dynamics_sizes(
                 parameters: f.parameters,
                 heldout_nll_gain: f.gain.heldout_nll_gain,
                 reason: format!(
-                    "fitted under the process noise the data ask for, its size {v:.3} is below {practical}"
+                    "fitted under the process noise the data ask for, its scale {v:.3} is within {practical} of 1"
                 ),
             });
         }
