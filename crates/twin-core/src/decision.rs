@@ -237,6 +237,30 @@ struct SideState {
     withdrawn: bool,
 }
 
+impl SideState {
+    /// A `Nominal` status withdrawn to `NotExcited`: no episode, and its
+    /// return is a change of its own.
+    fn withdraw(&mut self) {
+        self.status = ThrusterStatus::NotExcited;
+        self.onset_time_s = None;
+        self.withdrawn = true;
+    }
+}
+
+/// The alarm of a `Nominal` status of `side` withdrawn at `time_s`, for a
+/// reason that has held since `since_s`, with the probability `p_below`
+/// that the loss is below the suspect level.
+fn withdrawal(side: Side, time_s: f64, since_s: f64, p_below: f64) -> StatusChange {
+    StatusChange {
+        side,
+        from: ThrusterStatus::Nominal,
+        to: ThrusterStatus::NotExcited,
+        time_s,
+        onset_time_s: since_s,
+        confidence: p_below,
+    }
+}
+
 /// The decision state for two thrusters. Plain data, so it can be saved.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FaultDecider {
@@ -427,10 +451,8 @@ impl FaultDecider {
         if st.status != ThrusterStatus::Nominal || time_s - since < cfg.mismatch_withdraw_s {
             return None;
         }
-        st.status = ThrusterStatus::NotExcited;
-        st.onset_time_s = None;
         st.candidate = None;
-        st.withdrawn = true;
+        st.withdraw();
         // How sure the withdrawn claim was: the probability, under the
         // published loss, that it is below the suspect level.
         let p_below = if e.loss.is_finite() && e.sigma.is_finite() {
@@ -438,14 +460,7 @@ impl FaultDecider {
         } else {
             0.5
         };
-        Some(StatusChange {
-            side,
-            from: ThrusterStatus::Nominal,
-            to: ThrusterStatus::NotExcited,
-            time_s,
-            onset_time_s: since,
-            confidence: p_below,
-        })
+        Some(withdrawal(side, time_s, since, p_below))
     }
 
     /// Withdraws a `Nominal` status of `side` to `NotExcited` once the
@@ -482,10 +497,8 @@ impl FaultDecider {
         }
         // A pending warning keeps its clock: the estimate that withdraws
         // the claim of health may be the one confirming a fault.
-        st.status = ThrusterStatus::NotExcited;
-        st.onset_time_s = None;
         st.contradicted_since_s = None;
-        st.withdrawn = true;
+        st.withdraw();
         // How sure the withdrawn claim still is, under the estimate that
         // contradicts it.
         let (loss, sigma) = if relative_worse {
@@ -493,14 +506,8 @@ impl FaultDecider {
         } else {
             (e.loss, e.sigma)
         };
-        Some(StatusChange {
-            side,
-            from: ThrusterStatus::Nominal,
-            to: ThrusterStatus::NotExcited,
-            time_s,
-            onset_time_s: since,
-            confidence: 1.0 - cfg.probability_above_suspect(loss, sigma),
-        })
+        let p_below = 1.0 - cfg.probability_above_suspect(loss, sigma);
+        Some(withdrawal(side, time_s, since, p_below))
     }
 
     /// What the evidence `e` shows (module doc), `None` where nothing is

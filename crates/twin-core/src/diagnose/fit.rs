@@ -1424,10 +1424,9 @@ fn shared_part_line(
 }
 
 /// The dynamics causes whose sizes are fitted again under the process
-/// noise the data ask for, with their index in
-/// [`Hypothesis::profile_scales`]. Not the surge damping: it shares a ridge
-/// with the losses' common part, and a refit moves both along it.
-const REFINED_DYNAMICS: [(Cause, usize); 2] = [(Cause::YawDamping, 1), (Cause::Mass, 3)];
+/// noise the data ask for. Not the surge damping: it shares a ridge with
+/// the losses' common part, and a refit moves both along it.
+const REFINED_DYNAMICS: [Cause; 2] = [Cause::YawDamping, Cause::Mass];
 /// A refined size is searched within this factor of its selected size,
 /// either way.
 const REFINE_SPAN: f64 = 1.3;
@@ -1435,6 +1434,17 @@ const REFINE_SPAN: f64 = 1.3;
 const REFINE_ROUNDS: usize = 3;
 /// ... which stops once no size moved by more than this in a round.
 const REFINE_SETTLED: f64 = 0.005;
+
+/// A finding refitted by [`refine_dynamics_sizes`]: its cause's search,
+/// the size it was selected with, and its refitted size and standard
+/// deviation.
+struct Refitted {
+    cause: Cause,
+    search: &'static ScalarSearch,
+    selected: f64,
+    size: f64,
+    sd: f64,
+}
 
 /// Fits the sizes of the yaw damping and mass findings again under the
 /// velocity process noise whose level, per axis, the training likelihood
@@ -1450,11 +1460,28 @@ fn refine_dynamics_sizes(
     findings: &mut Vec<Finding>,
     rejected: &mut Vec<Rejected>,
 ) {
-    let refined: Vec<(Cause, usize)> = REFINED_DYNAMICS
-        .into_iter()
-        .filter(|(cause, _)| findings.iter().any(|f| f.cause == *cause))
+    if ctx.base != BaseModel::Kinetic {
+        return;
+    }
+    let mut refitted: Vec<Refitted> = findings
+        .iter()
+        .filter(|f| REFINED_DYNAMICS.contains(&f.cause))
+        .filter_map(|f| {
+            let Search::Scalar(search) = &f.cause.spec().search else {
+                return None;
+            };
+            let (_, selected, _) = f.parameters.iter().find(|p| p.0 == search.parameter)?;
+            let selected = scalar_value(search, *selected);
+            Some(Refitted {
+                cause: f.cause,
+                search,
+                selected,
+                size: selected,
+                sd: f64::NAN,
+            })
+        })
         .collect();
-    if refined.is_empty() || ctx.base != BaseModel::Kinetic {
+    if refitted.is_empty() {
         return;
     }
     let training_nll =
@@ -1463,7 +1490,6 @@ fn refine_dynamics_sizes(
     // sizes held, then the sizes with the levels held, until the sizes
     // settle.
     let mut hyp = model.hypothesis;
-    let mut sizes = Vec::new();
     let mut levels = [0.0; 3];
     for round in 0..REFINE_ROUNDS {
         let at_sizes = hyp;
@@ -1475,33 +1501,24 @@ fn refine_dynamics_sizes(
             ctx.config.threads,
         );
         let at_levels = noise_level::with_velocity_noise_levels(ctx.config, levels);
-        let before = hyp.profile_scales;
-        sizes.clear();
-        for &(cause, i) in &refined {
-            let selected = model.hypothesis.profile_scales[i];
+        let mut moved: f64 = 0.0;
+        for r in &mut refitted {
             let nll = |v: f64| {
                 let mut h = hyp;
-                h.profile_scales[i] = v;
+                (r.search.set)(&mut h, v);
                 training_nll(&at_levels, &h)
             };
-            // A profile parameter is a scalar search.
-            let Search::Scalar(search) = &cause.spec().search else {
-                continue;
-            };
-            let ((lo, hi), grid) = (search.bounds, search.grid);
-            let (v, sd) = minimise_1d(
+            let (lo, hi) = r.search.bounds;
+            let (size, sd) = minimise_1d(
                 &nll,
-                (selected / REFINE_SPAN).max(lo),
-                (selected * REFINE_SPAN).min(hi),
-                grid,
+                (r.selected / REFINE_SPAN).max(lo),
+                (r.selected * REFINE_SPAN).min(hi),
+                r.search.grid,
             );
-            hyp.profile_scales[i] = v;
-            sizes.push((cause, v, sd));
+            (r.search.set)(&mut hyp, size);
+            moved = moved.max((size - r.size).abs());
+            (r.size, r.sd) = (size, sd);
         }
-        let moved = refined
-            .iter()
-            .map(|&(_, i)| (hyp.profile_scales[i] - before[i]).abs())
-            .fold(0.0, f64::max);
         if moved < REFINE_SETTLED {
             break;
         }
@@ -1513,24 +1530,25 @@ fn refine_dynamics_sizes(
     model.hypothesis = hyp;
     model.out = out;
     let practical = ctx.config.acceptance.min_profile_scale_error;
-    for (cause, v, sd) in sizes {
-        let Some(k) = findings.iter().position(|f| f.cause == cause) else {
+    for r in refitted {
+        let Some(k) = findings.iter().position(|f| f.cause == r.cause) else {
             continue;
         };
         for p in &mut findings[k].parameters {
-            if p.0 == "scale" {
-                (p.1, p.2) = (v, sd);
+            if p.0 == r.search.parameter {
+                (p.1, p.2) = (r.size, r.sd);
             }
         }
-        if (v - 1.0).abs() < practical {
+        if (r.size - 1.0).abs() < practical {
             let f = findings.remove(k);
-            model.hypothesis = without(&model.hypothesis, cause);
+            model.hypothesis = without(&model.hypothesis, r.cause);
             rejected.push(Rejected {
-                cause,
+                cause: r.cause,
                 parameters: f.parameters,
                 heldout_nll_gain: f.gain.heldout_nll_gain,
                 reason: format!(
-                    "fitted under the process noise the data ask for, its scale {v:.3} is within {practical} of 1"
+                    "fitted under the process noise the data ask for, its scale {:.3} is within {practical} of 1",
+                    r.size
                 ),
             });
         }
