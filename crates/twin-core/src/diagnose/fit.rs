@@ -11,6 +11,8 @@ use super::noise_level;
 use super::pass::{AtSplit, PassOptions, PassOut, kinetic_pass, water_pass};
 use super::prepare::Prepared;
 use super::residuals::{InnovationRecord, ResidualSummary, summarise};
+use std::sync::Mutex;
+
 use crate::estimator::Term;
 use crate::models::effects::SensorEffects;
 use crate::twin::TwinConfig;
@@ -279,24 +281,84 @@ struct Ctx<'a> {
     base: BaseModel,
     config: &'a DiagnoseConfig,
     split: usize,
+    /// The passes already run with this log, configuration and split.
+    /// `None` in a context whose configuration differs from the one the
+    /// memo's passes were run with.
+    memo: Option<&'a PassMemo>,
 }
 
-impl Ctx<'_> {
-    fn pass(&self, hyp: &Hypothesis, train_only: bool, record: bool) -> PassOut {
-        let opts = PassOptions {
-            split: self.split,
-            train_only,
-            record,
-            config: self.config,
-        };
-        match self.base {
-            BaseModel::Kinetic => kinetic_pass(self.prep, hyp, opts),
-            BaseModel::Water => water_pass(self.prep, hyp, opts),
+/// The passes already run in one diagnosis, by hypothesis. The selection
+/// asks for many of them again (a joint refit scores the candidates on the
+/// model a greedy round scored them on; a judgement runs the model without
+/// a finding as an earlier judgement did), and a pass is a pure function
+/// of the log, the configuration, the split and the hypothesis: a pass
+/// taken from here is the one that would have been run.
+#[derive(Default)]
+struct PassMemo {
+    /// Training-only passes, without records.
+    train: Mutex<Vec<(Hypothesis, PassOut)>>,
+    /// Whole passes, with the held-out records.
+    whole: Mutex<Vec<(Hypothesis, PassOut)>>,
+}
+
+impl PassMemo {
+    fn table(&self, train_only: bool) -> &Mutex<Vec<(Hypothesis, PassOut)>> {
+        if train_only { &self.train } else { &self.whole }
+    }
+
+    fn get(&self, hyp: &Hypothesis, train_only: bool) -> Option<PassOut> {
+        let table = self.table(train_only).lock().ok()?;
+        table
+            .iter()
+            .find(|(h, _)| h == hyp)
+            .map(|(_, out)| out.clone())
+    }
+
+    fn put(&self, hyp: &Hypothesis, train_only: bool, out: &PassOut) {
+        if let Ok(mut table) = self.table(train_only).lock() {
+            table.push((*hyp, out.clone()));
+        }
+    }
+}
+
+impl<'a> Ctx<'a> {
+    /// The same log and split under another configuration, without the
+    /// memo (its passes were run with this one's).
+    fn with_config<'b>(&self, config: &'b DiagnoseConfig) -> Ctx<'b>
+    where
+        'a: 'b,
+    {
+        Ctx {
+            config,
+            memo: None,
+            ..*self
         }
     }
 
+    /// One pass over the log with `hyp`: the training part only, without
+    /// records, or the whole log with the held-out part's records.
+    fn pass(&self, hyp: &Hypothesis, train_only: bool) -> PassOut {
+        if let Some(out) = self.memo.and_then(|m| m.get(hyp, train_only)) {
+            return out;
+        }
+        let opts = PassOptions {
+            split: self.split,
+            train_only,
+            record: !train_only,
+            config: self.config,
+        };
+        let out = match self.base {
+            BaseModel::Kinetic => kinetic_pass(self.prep, hyp, opts),
+            BaseModel::Water => water_pass(self.prep, hyp, opts),
+        };
+        if let Some(memo) = self.memo {
+            memo.put(hyp, train_only, &out);
+        }
+        out
+    }
+
     fn train_nll(&self, hyp: &Hypothesis) -> f64 {
-        let out = self.pass(hyp, true, false);
+        let out = self.pass(hyp, true);
         if out.failed || !out.nll_train.is_finite() {
             f64::INFINITY
         } else {
@@ -606,7 +668,7 @@ impl Ridge<'_, '_> {
     fn at(&self, v: f64) -> Option<(Hypothesis, PassOut)> {
         let mut h = self.train;
         (self.scalar.set)(&mut h, v);
-        let out = self.ctx.pass(&h, true, false);
+        let out = self.ctx.pass(&h, true);
         (!out.failed).then_some((h, out))
     }
 
@@ -681,7 +743,7 @@ fn fit_states(
     search: &StateSearch,
 ) -> Option<Fitted> {
     (search.free)(&mut train);
-    let out = ctx.pass(&train, true, false);
+    let out = ctx.pass(&train, true);
     if out.failed {
         return None;
     }
@@ -700,7 +762,7 @@ fn fit_scalar(ctx: &Ctx<'_>, train: Hypothesis, cause: Cause, search: &ScalarSea
     let (lo, hi) = search.bounds;
     let (v, sd) = minimise_1d(&f, lo, hi, search.grid);
     let mut h = with(v);
-    let out = ctx.pass(&h, true, false);
+    let out = ctx.pass(&h, true);
     h.fix_states(&out.at_split);
     let beyond_physics = search
         .below_means
@@ -732,7 +794,7 @@ fn fit_plane(ctx: &Ctx<'_>, train: Hypothesis, cause: Cause, search: &PlaneSearc
     let (x, sx) = minimise_1d(&|v| ctx.train_nll(&with(v, y0)), lo, hi, search.grid);
     let (y, sy) = minimise_1d(&|v| ctx.train_nll(&with(x, v)), lo, hi, search.grid);
     let mut h = with(x, y);
-    let out = ctx.pass(&h, true, false);
+    let out = ctx.pass(&h, true);
     h.fix_states(&out.at_split);
     let size = x.hypot(y);
     let on_edge = near_edge(x, lo, hi) || near_edge(y, lo, hi);
@@ -824,7 +886,7 @@ fn score_round(
             .into_iter()
             .flatten()
             .filter_map(|f| {
-                let out = ctx.pass(&f.hypothesis, false, true);
+                let out = ctx.pass(&f.hypothesis, false);
                 (!out.failed).then_some((f, out))
             })
             .collect()
@@ -1079,7 +1141,7 @@ fn gain_of(
 fn judge_each_against_the_rest(ctx: &Ctx<'_>, model: &Accepted, findings: &mut [Finding]) {
     let after = summarise(&model.out.records);
     for f in findings {
-        let out = ctx.pass(&without(&model.hypothesis, f.cause), false, true);
+        let out = ctx.pass(&without(&model.hypothesis, f.cause), false);
         if !out.failed {
             let before = summarise(&out.records);
             let gain = out.nll_test - model.out.nll_test;
@@ -1134,7 +1196,7 @@ fn drop_beyond_physics(
     };
     while let Some(i) = findings.iter().position(|f| beyond(f.cause).is_some()) {
         let without_it = without(&model.hypothesis, findings[i].cause);
-        let out = ctx.pass(&without_it, false, true);
+        let out = ctx.pass(&without_it, false);
         if out.failed {
             return;
         }
@@ -1164,7 +1226,7 @@ fn drop_redundant(
     while findings.len() > 1 {
         let mut weakest: Option<(usize, f64, PassOut)> = None;
         for (i, f) in findings.iter().enumerate() {
-            let out = ctx.pass(&without(&model.hypothesis, f.cause), false, true);
+            let out = ctx.pass(&without(&model.hypothesis, f.cause), false);
             let gain = out.nll_test - model.out.nll_test;
             if !out.failed && gain < acc.min_gain_nll && weakest.as_ref().is_none_or(|w| gain < w.1)
             {
@@ -1213,7 +1275,7 @@ fn refit_jointly(
     while i < findings.len() {
         let old = findings[i].cause;
         let base = without(&model.hypothesis, old);
-        let base_out = ctx.pass(&base, false, true);
+        let base_out = ctx.pass(&base, false);
         if base_out.failed {
             i += 1;
             continue;
@@ -1361,7 +1423,7 @@ fn name_shared_parts(ctx: &Ctx<'_>, model: &mut Accepted, findings: &mut Vec<Fin
         else {
             continue;
         };
-        let out = ctx.pass(&placed.hypothesis, false, true);
+        let out = ctx.pass(&placed.hypothesis, false);
         let allowed_nll = if named.is_some() {
             acc.min_gain_nll
         } else {
@@ -1485,7 +1547,7 @@ fn refine_dynamics_sizes(
         return;
     }
     let training_nll =
-        |config: &DiagnoseConfig, hyp: &Hypothesis| Ctx { config, ..*ctx }.train_nll(hyp);
+        |config: &DiagnoseConfig, hyp: &Hypothesis| ctx.with_config(config).train_nll(hyp);
     // Coordinate ascent on the joint likelihood: the levels with the
     // sizes held, then the sizes with the levels held, until the sizes
     // settle.
@@ -1523,7 +1585,7 @@ fn refine_dynamics_sizes(
             break;
         }
     }
-    let out = ctx.pass(&hyp, false, true);
+    let out = ctx.pass(&hyp, false);
     if out.failed {
         return;
     }
@@ -1554,7 +1616,7 @@ fn refine_dynamics_sizes(
         }
     }
     if model.hypothesis != hyp {
-        let out = ctx.pass(&model.hypothesis, false, true);
+        let out = ctx.pass(&model.hypothesis, false);
         if !out.failed {
             model.out = out;
         }
@@ -1572,11 +1634,13 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     let split = ((n as f64) * (1.0 - config.holdout_fraction))
         .round()
         .clamp(2.0, (n - 1) as f64) as usize;
+    let memo = PassMemo::default();
     let ctx = Ctx {
         prep,
         base,
         config,
         split,
+        memo: Some(&memo),
     };
     let log = LogKind {
         base,
@@ -1586,7 +1650,7 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     };
     let acc = &config.acceptance;
     let mut accepted = Hypothesis::nominal();
-    let nominal_out = ctx.pass(&accepted, false, true);
+    let nominal_out = ctx.pass(&accepted, false);
     let nominal = summarise(&nominal_out.records);
     let nominal_records = nominal_out.records.clone();
     let mut current_out = nominal_out;
@@ -1662,6 +1726,80 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::diagnose::prepare::{DiagEvent, prepare};
+    use crate::geodesy::LatLon;
+    use crate::sample::{GnssFix, PropellerSpeeds};
+
+    /// A minute of a vessel circling at 1.5 m/s (fixes with course, speed
+    /// and heading at 5 Hz, shaft speeds at 10 Hz, the port one faster).
+    fn circling_log() -> Vec<DiagEvent> {
+        let (radius_m, speed_mps) = (30.0, 1.5);
+        let m_per_deg = 111_320.0;
+        let mut events = Vec::new();
+        for k in 0..600 {
+            let time_s = 1.0e9 + 0.1 * k as f64;
+            events.push(DiagEvent::Propellers(PropellerSpeeds {
+                time_s,
+                port_radps: 100.0,
+                starboard_radps: 80.0,
+            }));
+            if k % 2 == 0 {
+                let angle = speed_mps * 0.1 * k as f64 / radius_m;
+                let (north_m, east_m) = (radius_m * angle.sin(), radius_m * (1.0 - angle.cos()));
+                events.push(DiagEvent::Fix(GnssFix {
+                    time_s,
+                    position: LatLon {
+                        lat_deg: 60.0 + north_m / m_per_deg,
+                        lon_deg: 10.0 + east_m / (m_per_deg * 0.5),
+                    },
+                    sog_mps: Some(speed_mps),
+                    cog_rad: Some(angle),
+                    heading_rad: Some(angle),
+                    yaw_rate_radps: None,
+                    hdop: None,
+                }));
+            }
+        }
+        events
+    }
+
+    /// A pass the memo serves is the pass that would have been run, in
+    /// both kinds; a hypothesis that differs in one field is not served
+    /// another's pass.
+    #[test]
+    fn the_pass_memo_serves_only_the_same_pass() {
+        let prep = prepare(&circling_log()).expect("the log prepares");
+        let config = DiagnoseConfig::default();
+        let memo = PassMemo::default();
+        let memoised = Ctx {
+            prep: &prep,
+            base: BaseModel::Kinetic,
+            config: &config,
+            split: prep.steps.len() * 6 / 10,
+            memo: Some(&memo),
+        };
+        let run = Ctx {
+            memo: None,
+            ..memoised
+        };
+        let nominal = Hypothesis::nominal();
+        let mut slower_turning = nominal;
+        slower_turning.profile_scales[1] = 1.3;
+        let mut late = nominal;
+        late.effects.gnss_latency_s = 0.3;
+        for train_only in [true, false] {
+            for hyp in [nominal, slower_turning, late, nominal, late] {
+                let served = memoised.pass(&hyp, train_only);
+                let fresh = run.pass(&hyp, train_only);
+                assert!(!fresh.failed);
+                assert_eq!(format!("{served:?}"), format!("{fresh:?}"));
+            }
+            let kept = memo.table(train_only).lock().map_or(0, |t| t.len());
+            assert_eq!(kept, 3, "each hypothesis run once");
+        }
+        let nll = |h: &Hypothesis| run.pass(h, true).nll_train;
+        assert!(nll(&slower_turning) != nll(&nominal) && nll(&late) != nll(&nominal));
+    }
 
     /// A latency is searched in [0, 2] s only; a fit stopped at zero is
     /// said to want a negative latency only when the data fit better below
