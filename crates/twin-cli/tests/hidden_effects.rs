@@ -98,22 +98,44 @@ fn a_current_and_a_propeller_loss_are_both_named() {
     assert!((loss.parameters["loss"].as_f64().unwrap() - 0.22).abs() <= 0.044);
 }
 
-/// A loss that starts mid-log is named with its onset: the time from
-/// which the filter's loss estimate stays above half its final value,
-/// within 30 s of the truth.
-#[test]
-fn a_loss_that_starts_mid_log_is_found_with_its_onset() {
+/// Diagnoses the base trial (seed `seed`) with a loss of 0.3 on `side`
+/// from `onset_s`, and requires that loss alone named, its size within
+/// 20 % and its onset within 30 s.
+fn assert_loss_found_with_its_onset(seed: u64, side: &str, onset_s: f64) {
     let mut sc = base();
-    sc.seed = 777;
-    sc.propellers.port.loss = 0.3;
-    sc.propellers.port.onset_s = 90.0;
-    let r = diagnose_scenario(&sc, "mid-log-loss");
+    sc.seed = seed;
+    let propeller = if side == "port" {
+        &mut sc.propellers.port
+    } else {
+        &mut sc.propellers.starboard
+    };
+    propeller.loss = 0.3;
+    propeller.onset_s = onset_s;
+    let r = diagnose_scenario(&sc, &format!("loss-from-{onset_s}s"));
     let causes: Vec<&str> = r.findings.iter().map(|f| f.cause.as_str()).collect();
     assert_eq!(causes, ["thruster_loss"], "{:?}", r.findings);
     let f = &r.findings[0];
-    assert_eq!(f.parameters["side"], "port");
+    assert_eq!(f.parameters["side"], side);
     let loss = f.parameters["loss"].as_f64().unwrap();
     assert!((loss - 0.3).abs() <= 0.2 * 0.3, "loss {loss}");
     let onset = f.parameters["onset_s"].as_f64().expect("an onset");
-    assert!((onset - 90.0).abs() <= 30.0, "onset {onset} s, truth 90 s");
+    assert!(
+        (onset - onset_s).abs() <= 30.0,
+        "onset {onset} s, truth {onset_s} s"
+    );
+}
+
+/// A loss that starts mid-log is named with its onset: the time from
+/// which the filter's loss estimate stays above half its final value.
+#[test]
+fn a_loss_that_starts_mid_log_is_found_with_its_onset() {
+    assert_loss_found_with_its_onset(777, "port", 90.0);
+}
+
+/// A loss that starts in the held-out part (the last 40 % of the log,
+/// from 180 s) has nothing to fit in the training part: it is named from
+/// the losses the filter tracks through the held-out part, with its onset.
+#[test]
+fn a_loss_that_starts_in_the_held_out_part_is_found_with_its_onset() {
+    assert_loss_found_with_its_onset(778, "starboard", 200.0);
 }

@@ -1623,6 +1623,68 @@ fn refine_dynamics_sizes(
     }
 }
 
+/// A propeller loss that starts in the held-out part. The training part has
+/// none to fit, so no greedy round can name it; where the model names no
+/// loss, the losses are tracked by the filter through the held-out part
+/// too. Its one-step-ahead predictions stay causal, so the held-out
+/// likelihood judges the tracked losses as it judges a fitted cause, with
+/// the same bars. Named only where the tracked loss is nothing at the
+/// split (below its practical size, or within its bar of standard
+/// deviations) and clears the bars at the log's end: its size is the
+/// filter's estimate there (lagging a step by the filter's memory), its
+/// onset read off the track over the whole log.
+fn find_loss_after_training(ctx: &Ctx<'_>, model: &mut Accepted, findings: &mut Vec<Finding>) {
+    let cause = Cause::ThrusterLoss;
+    let Search::States(search) = &cause.spec().search else {
+        return;
+    };
+    if ctx.base != BaseModel::Kinetic || model.hypothesis.loss != Term::Off {
+        return;
+    }
+    let acc = &ctx.config.acceptance;
+    let mut tracked = model.hypothesis;
+    (search.free)(&mut tracked);
+    let out = ctx.pass(&tracked, false);
+    let at_split = out.at_split;
+    let none_at_split = (0..2).all(|side| {
+        at_split.loss[side] < acc.min_loss
+            || at_split.loss[side] < acc.min_z * at_split.loss_sigma[side]
+    });
+    if out.failed || !none_at_split {
+        return;
+    }
+    // The states at the log's end, the onsets from the whole track.
+    let whole_log = Ctx {
+        split: ctx.prep.steps.len(),
+        memo: None,
+        ..*ctx
+    };
+    let at_end = whole_log.pass(&tracked, true);
+    if at_end.failed {
+        return;
+    }
+    let fitted = state_fitted(ctx, cause, search, tracked, at_end.at_split);
+    let gain = model.out.nll_test - out.nll_test;
+    let forecasts = Forecasts {
+        before_m: &model.out.rmse(),
+        after_m: &out.rmse(),
+    };
+    if missed_bar(&fitted, gain, forecasts, acc).is_some() {
+        return;
+    }
+    let mut found = finding(&fitted, &out, gain, &model.out);
+    let split_s = ctx.prep.steps[ctx.split].fix.time_s - ctx.prep.steps[0].fix.time_s;
+    found.evidence.insert(
+        0,
+        format!(
+            "it starts after the training part (which ends at {split_s:.0} s): tracked by the filter through the held-out part, its size is the estimate at the log's end"
+        ),
+    );
+    findings.push(found);
+    model.hypothesis = tracked;
+    model.out = out;
+}
+
 /// Diagnoses a prepared log.
 pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     let base = if prep.has_propellers {
@@ -1702,6 +1764,7 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     }
     refine_dynamics_sizes(&ctx, &mut model, &mut findings, &mut rejected);
     name_shared_parts(&ctx, &mut model, &mut findings);
+    find_loss_after_training(&ctx, &mut model, &mut findings);
     judge_each_against_the_rest(&ctx, &model, &mut findings);
     // A cause rejected in one round, or tried alone and with a companion,
     // can be named in the end (in a finding's place, or as a companion):

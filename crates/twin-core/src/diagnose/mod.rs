@@ -58,6 +58,11 @@
 //!    (`noise_level`): the search holds that noise at the harbour water's,
 //!    and a likelihood maximised with a noise level that is not the data's
 //!    biases a dynamics parameter towards a faster-contracting hull.
+//!    Where no loss is named, the losses are then tracked by the filter
+//!    through the held-out part as well: a loss that starts there, with
+//!    nothing to fit in the training part, is named where the tracked
+//!    losses are nothing at the split and clear the same bars at the
+//!    log's end, with the onset read off the whole track.
 //! 6. **Report** ([`Diagnosis`]): per finding the cause, its parameters
 //!    with uncertainty, the evidence in the residuals, and the gain on
 //!    held-out data against the model with every other finding
