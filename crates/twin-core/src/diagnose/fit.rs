@@ -1591,7 +1591,31 @@ fn refine_dynamics_sizes(
     }
     model.hypothesis = hyp;
     model.out = out;
-    let practical = ctx.config.acceptance.min_profile_scale_error;
+    take_refined_sizes(
+        refitted,
+        ctx.config.acceptance.min_profile_scale_error,
+        &mut model.hypothesis,
+        findings,
+        rejected,
+    );
+    if model.hypothesis != hyp {
+        let out = ctx.pass(&model.hypothesis, false);
+        if !out.failed {
+            model.out = out;
+        }
+    }
+}
+
+/// The refined sizes put in their findings (value and standard deviation);
+/// a finding whose refined size is within `practical` of 1 is dropped from
+/// the findings and from `hypothesis`, with the reason.
+fn take_refined_sizes(
+    refitted: Vec<Refitted>,
+    practical: f64,
+    hypothesis: &mut Hypothesis,
+    findings: &mut Vec<Finding>,
+    rejected: &mut Vec<Rejected>,
+) {
     for r in refitted {
         let Some(k) = findings.iter().position(|f| f.cause == r.cause) else {
             continue;
@@ -1603,7 +1627,7 @@ fn refine_dynamics_sizes(
         }
         if (r.size - 1.0).abs() < practical {
             let f = findings.remove(k);
-            model.hypothesis = without(&model.hypothesis, r.cause);
+            *hypothesis = without(hypothesis, r.cause);
             rejected.push(Rejected {
                 cause: r.cause,
                 parameters: f.parameters,
@@ -1613,12 +1637,6 @@ fn refine_dynamics_sizes(
                     r.size
                 ),
             });
-        }
-    }
-    if model.hypothesis != hyp {
-        let out = ctx.pass(&model.hypothesis, false);
-        if !out.failed {
-            model.out = out;
         }
     }
 }
@@ -1824,6 +1842,62 @@ mod tests {
             }
         }
         events
+    }
+
+    /// A refined size replaces the selected one in its finding; one that
+    /// falls within the practical bar of 1 drops its finding, which leaves
+    /// the model's hypothesis and is rejected with its refined size.
+    #[test]
+    fn a_refined_size_within_the_bar_drops_its_finding() {
+        let finding = |cause: Cause, scale: f64| Finding {
+            cause,
+            parameters: vec![("scale", scale, 0.01)],
+            side: None,
+            evidence: Vec::new(),
+            gain: Gain {
+                heldout_nll_gain: 40.0,
+                heldout_steps: 600,
+                nis_per_dof_before: 1.2,
+                nis_per_dof_after: 1.0,
+                prediction_rmse_before_m: Vec::new(),
+                prediction_rmse_after_m: Vec::new(),
+            },
+        };
+        let refitted = |cause: Cause, selected: f64, size: f64| {
+            let Search::Scalar(search) = &cause.spec().search else {
+                panic!("a scalar cause");
+            };
+            assert_eq!(search.parameter, "scale");
+            Refitted {
+                cause,
+                search,
+                selected,
+                size,
+                sd: 0.02,
+            }
+        };
+        let mut hypothesis = Hypothesis::nominal();
+        hypothesis.profile_scales = [1.0, 1.28, 1.0, 1.12];
+        let mut findings = vec![finding(Cause::YawDamping, 1.25), finding(Cause::Mass, 1.12)];
+        let mut rejected = Vec::new();
+        take_refined_sizes(
+            vec![
+                refitted(Cause::YawDamping, 1.25, 1.28),
+                refitted(Cause::Mass, 1.12, 1.06),
+            ],
+            0.1,
+            &mut hypothesis,
+            &mut findings,
+            &mut rejected,
+        );
+        assert_eq!(findings.len(), 1);
+        assert_eq!(findings[0].cause, Cause::YawDamping);
+        assert_eq!(findings[0].parameters, vec![("scale", 1.28, 0.02)]);
+        assert_eq!(hypothesis.profile_scales, [1.0, 1.28, 1.0, 1.0]);
+        assert_eq!(rejected.len(), 1);
+        assert_eq!(rejected[0].cause, Cause::Mass);
+        assert_eq!(rejected[0].parameters, vec![("scale", 1.06, 0.02)]);
+        assert!(rejected[0].reason.contains("1.060 is within 0.1 of 1"));
     }
 
     /// A pass the memo serves is the pass that would have been run, in
