@@ -403,13 +403,22 @@ fn hidden_effects_on_changed_vessels_of_the_independent_simulator() {
     });
     let misses = report("diagnose-perturbed-othersim", &results);
     let control_failures = misses.control;
-    // The changed-vessel draws are not all required to meet the bars
-    // (docs/known-issues.md, "Diagnose"); which miss is printed.
+    // One changed-vessel draw is known to miss the bars: a GNSS latency of
+    // 0.5 s beside a yaw damping 28 % low, found as a latency of 0.29 s
+    // (docs/known-issues.md, "Diagnose": the twin's model of that vessel).
+    // Any other miss fails.
+    const KNOWN_MISSES: [usize; 1] = [5];
     println!(
-        "changed-vessel draws that miss the bars: {:?}",
+        "changed-vessel draws that miss the bars: {:?} (known: {KNOWN_MISSES:?})",
         misses.changed
     );
-    if control_failures.is_empty() {
+    let new_misses: Vec<usize> = misses
+        .changed
+        .iter()
+        .copied()
+        .filter(|i| !KNOWN_MISSES.contains(i))
+        .collect();
+    if control_failures.is_empty() && new_misses.is_empty() {
         let _ = std::fs::remove_dir_all(&dir);
     } else {
         println!("logs kept in {}", dir.display());
@@ -417,5 +426,9 @@ fn hidden_effects_on_changed_vessels_of_the_independent_simulator() {
     assert!(
         control_failures.is_empty(),
         "wrong diagnoses of the unchanged vessel: {control_failures:?}"
+    );
+    assert!(
+        new_misses.is_empty(),
+        "changed-vessel draws that miss the bars beyond the known one: {new_misses:?}"
     );
 }
