@@ -132,6 +132,14 @@ fn a_loss_that_starts_mid_log_is_found_with_its_onset() {
     assert_loss_found_with_its_onset(777, "port", 90.0);
 }
 
+/// A loss from 120 s has a minute of the training part: the filter's
+/// estimate at the split has moved about four fifths of the step. Fitted
+/// as a step at its onset, it is named within the same bars.
+#[test]
+fn a_loss_a_minute_before_the_split_is_sized_as_a_step() {
+    assert_loss_found_with_its_onset(779, "port", 120.0);
+}
+
 /// A loss that starts in the held-out part (the last 40 % of the log,
 /// from 180 s) has nothing to fit in the training part: it is named from
 /// the losses the filter tracks through the held-out part, with its onset.

@@ -346,7 +346,10 @@ static THRUSTER_LOSS: CauseSpec = CauseSpec {
     applies: |log| log.base == BaseModel::Kinetic,
     search: Search::States(StateSearch {
         free: free_losses,
-        off: |h| h.loss = Term::Off,
+        off: |h| {
+            h.loss = Term::Off;
+            h.loss_from_s = 0.0;
+        },
         report: loss_report,
         beyond: |s| {
             if s.loss[0].min(s.loss[1]) < MIN_LOSS {

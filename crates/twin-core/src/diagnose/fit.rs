@@ -257,6 +257,9 @@ pub(super) struct Hypothesis {
     /// The profile's `[surge damping, yaw damping, thrust coefficients,
     /// mass]` over the profile's own (kinetic base only).
     pub profile_scales: [f64; 4],
+    /// Seconds from the log's first fix from which `Fixed` losses apply
+    /// (none before: a step at a loss's onset); 0 for the whole log.
+    pub loss_from_s: f64,
 }
 
 impl Hypothesis {
@@ -269,6 +272,7 @@ impl Hypothesis {
             stw_scale: 1.0,
             sideslip_m: 0.0,
             profile_scales: [1.0; 4],
+            loss_from_s: 0.0,
         }
     }
 }
@@ -468,6 +472,7 @@ impl Hypothesis {
         }
         if matches!(self.loss, Term::Fixed(_)) {
             self.loss = Term::Free;
+            self.loss_from_s = 0.0;
         }
         self
     }
@@ -1641,6 +1646,114 @@ fn take_refined_sizes(
     }
 }
 
+/// A loss whose track rises later than this after the log's first fix is
+/// a step at its onset, and its size is fitted as one
+/// ([`fit_loss_step`]); an earlier one is there from the start.
+const MIN_STEP_ONSET_S: f64 = 30.0;
+
+/// The named side's loss fitted as a step (none before its onset, its size
+/// after, the other side's loss held) by the training likelihood of `ctx`:
+/// the size from 0.7 to 2 times the one the filter tracked (its estimate
+/// lags a step by its memory), then the onset from 40 s before to 10 s
+/// after the one read off its track (which the same lag delays), then the
+/// size again. Returns the size, its standard deviation, the onset, and
+/// the hypothesis with the step.
+fn fit_loss_step(
+    ctx: &Ctx<'_>,
+    base: &Hypothesis,
+    losses: [f64; 2],
+    side: usize,
+    onset_s: f64,
+) -> (f64, f64, f64, Hypothesis) {
+    let with = |v: f64, from_s: f64| {
+        let mut h = *base;
+        let mut l = losses;
+        l[side] = v;
+        h.loss = Term::Fixed(l);
+        h.loss_from_s = from_s;
+        h
+    };
+    let tracked = losses[side];
+    let size_at = |from_s: f64| {
+        minimise_1d(
+            &|v| ctx.train_nll(&with(v, from_s)),
+            0.7 * tracked,
+            (2.0 * tracked).min(0.95),
+            6,
+        )
+    };
+    let (size, _) = size_at(onset_s);
+    let (onset_s, _) = minimise_1d(
+        &|t| ctx.train_nll(&with(size, t)),
+        (onset_s - 40.0).max(MIN_STEP_ONSET_S / 2.0),
+        onset_s + 10.0,
+        10,
+    );
+    let (size, sd) = size_at(onset_s);
+    (size, sd, onset_s, with(size, onset_s))
+}
+
+/// A named loss's side index, its onset and losses, where it is a step
+/// (an onset after [`MIN_STEP_ONSET_S`]).
+fn loss_step_of(f: &Finding) -> Option<(usize, f64, [f64; 2])> {
+    let value = |name: &str| f.parameters.iter().find(|p| p.0 == name).map(|p| p.1);
+    let side = match f.side? {
+        "port" => 0,
+        _ => 1,
+    };
+    let onset_s = value("onset_s").filter(|t| *t >= MIN_STEP_ONSET_S)?;
+    Some((
+        side,
+        onset_s,
+        [value("loss_port")?, value("loss_starboard")?],
+    ))
+}
+
+/// Puts a step's fitted size and onset in a loss finding's parameters.
+fn set_step(f: &mut Finding, side: usize, size: f64, sd: f64, onset_s: f64) {
+    let side_name = if side == 0 {
+        "loss_port"
+    } else {
+        "loss_starboard"
+    };
+    for p in &mut f.parameters {
+        if p.0 == "loss" || p.0 == side_name {
+            (p.1, p.2) = (size, sd);
+        } else if p.0 == "onset_s" {
+            p.1 = onset_s;
+        }
+    }
+}
+
+/// A loss named with an onset inside the training part is a step there:
+/// its size fitted as one on the training part ([`fit_loss_step`]) rather
+/// than read off the filter's estimate at the split, which lags it, and
+/// the model takes the step. Returns whether it did.
+fn refine_loss_step(ctx: &Ctx<'_>, model: &mut Accepted, findings: &mut [Finding]) -> bool {
+    let Some(k) = findings.iter().position(|f| f.cause == Cause::ThrusterLoss) else {
+        return false;
+    };
+    let Some((side, onset_s, losses)) = loss_step_of(&findings[k]) else {
+        return false;
+    };
+    if !matches!(model.hypothesis.loss, Term::Fixed(_)) {
+        return false;
+    }
+    let (size, sd, onset_s, stepped) = fit_loss_step(ctx, &model.hypothesis, losses, side, onset_s);
+    let out = ctx.pass(&stepped, false);
+    if out.failed {
+        return false;
+    }
+    set_step(&mut findings[k], side, size, sd, onset_s);
+    findings[k].evidence.insert(
+        0,
+        "a step: its size and onset fitted as one on the training part".to_string(),
+    );
+    model.hypothesis = stepped;
+    model.out = out;
+    true
+}
+
 /// A propeller loss that starts in the held-out part. The training part has
 /// none to fit, so no greedy round can name it; where the model names no
 /// loss, the losses are tracked by the filter through the held-out part
@@ -1692,10 +1805,20 @@ fn find_loss_after_training(ctx: &Ctx<'_>, model: &mut Accepted, findings: &mut 
     }
     let mut found = finding(&fitted, &out, gain, &model.out);
     let split_s = ctx.prep.steps[ctx.split].fix.time_s - ctx.prep.steps[0].fix.time_s;
+    let mut how = "its size the estimate at the log's end".to_string();
+    if let Some((side, onset_s, losses)) = loss_step_of(&found) {
+        // The held-out part holds all of the loss: its size fitted as a
+        // step over the whole log (a report; the gain stays the tracked
+        // losses' own).
+        let (size, sd, onset_s, _) =
+            fit_loss_step(&whole_log, &model.hypothesis, losses, side, onset_s);
+        set_step(&mut found, side, size, sd, onset_s);
+        how = "its size and onset fitted as a step over the whole log".to_string();
+    }
     found.evidence.insert(
         0,
         format!(
-            "it starts after the training part (which ends at {split_s:.0} s): tracked by the filter through the held-out part, its size is the estimate at the log's end"
+            "it starts after the training part (which ends at {split_s:.0} s): judged as the losses the filter tracks through the held-out part, {how}"
         ),
     );
     findings.push(found);
@@ -1778,6 +1901,11 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     // in, for a yaw damping that stood in for it).
     let applicable: Vec<Cause> = Cause::ALL.into_iter().filter(|c| c.applies(&log)).collect();
     if refit_jointly(&ctx, &applicable, &mut model, &mut findings, &mut rejected) {
+        drop_redundant(&ctx, &mut model, &mut findings, &mut rejected);
+    }
+    // A finding that stood in for the lag of a loss's estimate gains
+    // nothing once the loss is a step.
+    if refine_loss_step(&ctx, &mut model, &mut findings) {
         drop_redundant(&ctx, &mut model, &mut findings, &mut rejected);
     }
     refine_dynamics_sizes(&ctx, &mut model, &mut findings, &mut rejected);

@@ -19,7 +19,7 @@ use crate::estimator::{
 use crate::linalg::cholesky;
 use crate::model::Model;
 use crate::models::otter_twin::{
-    FAULTS, MEASUREMENTS, OtterTwin, STATES, ShaftSpeeds, idx as kidx,
+    FAULTS, MEASUREMENTS, OtterTwin, STATES, ShaftSpeeds, fault, idx as kidx,
 };
 use crate::models::water_kinematic::{WaterKinematic, idx as widx};
 use crate::predict::predict_states;
@@ -112,6 +112,9 @@ trait PassBase<const N: usize, const M: usize, const P: usize> {
     /// `[sin heading, cos heading, speed, yaw rate]` of a state.
     fn signatures(&self, x: &SVector<f64, N>) -> [f64; 4];
     fn at_split(&self, state: &AekfState<N, M, P>) -> AtSplit;
+    /// What the hypothesis changes in the held states from `elapsed_s`
+    /// (seconds from the log's first fix), before that step.
+    fn at_time(&self, _state: &mut AekfState<N, M, P>, _elapsed_s: f64) {}
     /// The propellers' estimated losses, where the base has them.
     fn losses(&self, _state: &AekfState<N, M, P>) -> Option<[f64; 2]> {
         None
@@ -138,22 +141,27 @@ fn loss_onsets(track: &[(f64, [f64; 2])], min_loss: f64) -> [f64; 2] {
     onset
 }
 
-struct Kinetic(KineticBase);
+struct Kinetic {
+    base: KineticBase,
+    /// Losses `[port, starboard]` held from this many seconds after the
+    /// log's first fix (none before), where the hypothesis has a step.
+    loss_step: Option<(f64, [f64; 2])>,
+}
 
 impl PassBase<STATES, MEASUREMENTS, FAULTS> for Kinetic {
     type Model = OtterTwin;
     const SLOTS: [usize; MEASUREMENTS] = [0, 1, 2, 3, 4, 6];
 
     fn model(&self) -> &OtterTwin {
-        self.0.model()
+        self.base.model()
     }
 
     fn prior(&self, fix: &LocalFix) -> KineticState {
-        self.0.prior(fix, None)
+        self.base.prior(fix, None)
     }
 
     fn available(&self, fix: &LocalFix) -> [bool; MEASUREMENTS] {
-        self.0.measurement(fix).available
+        self.base.measurement(fix).available
     }
 
     fn step(
@@ -163,7 +171,7 @@ impl PassBase<STATES, MEASUREMENTS, FAULTS> for Kinetic {
         fix: &LocalFix,
         dt_s: f64,
     ) -> Result<StepReport<MEASUREMENTS, FAULTS>, AekfError> {
-        self.0.step(state, input, fix, dt_s)
+        self.base.step(state, input, fix, dt_s)
     }
 
     /// The mean shaft speeds over each step's interval; an interval without
@@ -204,6 +212,15 @@ impl PassBase<STATES, MEASUREMENTS, FAULTS> for Kinetic {
 
     fn losses(&self, st: &KineticState) -> Option<[f64; 2]> {
         Some([st.theta[0], st.theta[1]])
+    }
+
+    fn at_time(&self, state: &mut KineticState, elapsed_s: f64) {
+        if let Some((from_s, loss)) = self.loss_step
+            && elapsed_s >= from_s
+        {
+            state.theta[fault::PORT] = loss[0];
+            state.theta[fault::STARBOARD] = loss[1];
+        }
     }
 }
 
@@ -258,10 +275,19 @@ impl PassBase<7, 6, 0> for Water {
 /// Runs the kinetic base with the hypothesis `hyp` over the log.
 pub(super) fn kinetic_pass(prep: &Prepared, hyp: &Hypothesis, opts: PassOptions<'_>) -> PassOut {
     let config = &opts.config.twin;
+    // A step: the losses held at none until `loss_from_s`, then at theirs.
+    let loss_step = match hyp.loss {
+        Term::Fixed(loss) if hyp.loss_from_s > 0.0 => Some((hyp.loss_from_s, loss)),
+        _ => None,
+    };
     let options = KineticOptions {
         effects: hyp.effects,
         current: hyp.current,
-        losses: hyp.loss,
+        losses: if loss_step.is_some() {
+            Term::Fixed([0.0; 2])
+        } else {
+            hyp.loss
+        },
         heading_bias: hyp.heading_bias,
         profile_errors: Term::Off,
     };
@@ -271,7 +297,7 @@ pub(super) fn kinetic_pass(prep: &Prepared, hyp: &Hypothesis, opts: PassOptions<
         ..config.kinetic
     };
     match KineticBase::new(&kinetic, gate(opts.config), options) {
-        Ok(base) => drive(&Kinetic(base), prep, opts),
+        Ok(base) => drive(&Kinetic { base, loss_step }, prep, opts),
         Err(_) => PassOut::failed(),
     }
 }
@@ -354,6 +380,7 @@ where
             }
         }
         let step = &steps[k].fix;
+        base.at_time(&mut state, step.time_s - t0);
         let dt = step.time_s - steps[k - 1].fix.time_s;
         let Ok(report) = base.step(&mut state, &inputs[k], step, dt) else {
             return PassOut::failed();
