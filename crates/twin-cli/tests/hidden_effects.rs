@@ -140,6 +140,15 @@ fn a_loss_a_minute_before_the_split_is_sized_as_a_step() {
     assert_loss_found_with_its_onset(779, "port", 120.0);
 }
 
+/// A loss from 160 s has 20 s of the training part: the filter's estimate
+/// at the split is a transient, a fraction of the step, which fixed there
+/// would judge the held-out part with a fraction of the loss. Its track
+/// rose late, so it is fitted as a step on those 20 s.
+#[test]
+fn a_loss_just_before_the_split_is_sized_as_a_step() {
+    assert_loss_found_with_its_onset(780, "starboard", 160.0);
+}
+
 /// A loss that starts in the held-out part (the last 40 % of the log,
 /// from 180 s) has nothing to fit in the training part: it is named from
 /// the losses the filter tracks through the held-out part, with its onset.

@@ -158,6 +158,37 @@ pub(super) struct StateSearch {
     /// A part of the states that another cause moves the vessel alike
     /// with (`None` when there is none).
     pub shared: Option<SharedPart>,
+    /// States that can start late in the log (`None`: states there from
+    /// the start).
+    pub late_rise: Option<LateRise>,
+}
+
+/// States that can start late in the log. Risen within the last
+/// [`LATE_RISE_S`] of the training part, their estimates at the split are
+/// a transient, not their size, and fixed there they would judge the
+/// held-out part with a fraction of the cause: the loss is fitted as a step
+/// on the training part instead. Nothing at the split, they may start in
+/// the held-out part: they are then left tracked by the filter through it,
+/// whose one-step-ahead predictions stay causal, so that the held-out
+/// likelihood still judges them.
+pub(super) struct LateRise {
+    /// Whether the states rose within the last [`LATE_RISE_S`] of the
+    /// training part (the estimates at the split, and the split's time from
+    /// the log's first fix, s).
+    pub rising: fn(&AtSplit, f64) -> bool,
+    /// Leaves them tracked through the held-out part in a hypothesis.
+    pub track: fn(&mut Hypothesis),
+}
+
+/// How late in the training part a rise makes the estimates at the split a
+/// transient, s: a loss's track, which lags the step by the filter's memory,
+/// has moved about half of it within this.
+pub(super) const LATE_RISE_S: f64 = 40.0;
+
+/// Whether the larger loss's track rose within [`LATE_RISE_S`] of the split.
+fn loss_rising(s: &AtSplit, split_s: f64) -> bool {
+    let side = if s.loss[0] >= s.loss[1] { 0 } else { 1 };
+    s.loss_onset_s[side] >= split_s - LATE_RISE_S
 }
 
 /// The part of a state cause's estimates that another cause imitates
@@ -337,6 +368,7 @@ static CURRENT: CauseSpec = CauseSpec {
             (s.current[0].hypot(s.current[1]) > MAX_CURRENT_MPS).then_some(TOO_FAST_CURRENT)
         },
         shared: None,
+        late_rise: None,
     }),
 };
 
@@ -349,6 +381,7 @@ static THRUSTER_LOSS: CauseSpec = CauseSpec {
         off: |h| {
             h.loss = Term::Off;
             h.loss_from_s = 0.0;
+            h.loss_tracked = false;
         },
         report: loss_report,
         beyond: |s| {
@@ -364,6 +397,10 @@ static THRUSTER_LOSS: CauseSpec = CauseSpec {
             cause: Cause::SurgeDamping,
             size: shared_loss,
             what: "the loss both propellers shared",
+        }),
+        late_rise: Some(LateRise {
+            rising: loss_rising,
+            track: |h| h.loss_tracked = true,
         }),
     }),
 };

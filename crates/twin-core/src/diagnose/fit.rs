@@ -260,6 +260,9 @@ pub(super) struct Hypothesis {
     /// Seconds from the log's first fix from which `Fixed` losses apply
     /// (none before: a step at a loss's onset); 0 for the whole log.
     pub loss_from_s: f64,
+    /// `Free` losses tracked by the filter through the held-out part too,
+    /// not fixed at the split ([`super::catalogue::LateRise`]).
+    pub loss_tracked: bool,
 }
 
 impl Hypothesis {
@@ -273,6 +276,7 @@ impl Hypothesis {
             sideslip_m: 0.0,
             profile_scales: [1.0; 4],
             loss_from_s: 0.0,
+            loss_tracked: false,
         }
     }
 }
@@ -337,6 +341,11 @@ impl<'a> Ctx<'a> {
             memo: None,
             ..*self
         }
+    }
+
+    /// The split's time from the log's first fix, s.
+    fn split_s(&self) -> f64 {
+        self.prep.steps[self.split].fix.time_s - self.prep.steps[0].fix.time_s
     }
 
     /// One pass over the log with `hyp`: the training part only, without
@@ -470,9 +479,9 @@ impl Hypothesis {
         if matches!(self.current, Term::Fixed(_)) {
             self.current = Term::Free;
         }
-        if matches!(self.loss, Term::Fixed(_)) {
+        // A step stays as fitted: freed, its track would lag it again.
+        if matches!(self.loss, Term::Fixed(_)) && self.loss_from_s == 0.0 {
             self.loss = Term::Free;
-            self.loss_from_s = 0.0;
         }
         self
     }
@@ -482,7 +491,7 @@ impl Hypothesis {
         if self.current == Term::Free {
             self.current = Term::Fixed(s.current);
         }
-        if self.loss == Term::Free {
+        if self.loss == Term::Free && !self.loss_tracked {
             self.loss = Term::Fixed(s.loss);
         }
     }
@@ -527,6 +536,11 @@ fn fit_with_shared(ctx: &Ctx<'_>, accepted: &Hypothesis, alone: &Fitted) -> Opti
     };
     let shared = search.shared.as_ref()?;
     let states = alone.states?;
+    // States that rose late are a transient at the split: what they share
+    // there is not the hull's.
+    if alone.hypothesis.loss_tracked {
+        return None;
+    }
     let practical = (search.report)(&states, &ctx.config.acceptance).practical;
     if (shared.size)(&states).abs() < practical || without(accepted, shared.cause) != *accepted {
         return None;
@@ -753,6 +767,11 @@ fn fit_states(
         return None;
     }
     let s = out.at_split;
+    if let Some(late) = &search.late_rise
+        && (late.rising)(&s, ctx.split_s())
+    {
+        return Some(late_step(ctx, train, cause, search, s));
+    }
     train.fix_states(&s);
     Some(state_fitted(ctx, cause, search, train, s))
 }
@@ -1653,17 +1672,16 @@ const MIN_STEP_ONSET_S: f64 = 30.0;
 
 /// The named side's loss fitted as a step (none before its onset, its size
 /// after, the other side's loss held) by the training likelihood of `ctx`:
-/// the size from 0.7 to 2 times the one the filter tracked (its estimate
-/// lags a step by its memory), then the onset from 40 s before to 10 s
-/// after the one read off its track (which the same lag delays), then the
-/// size again. Returns the size, its standard deviation, the onset, and
-/// the hypothesis with the step.
+/// the size within its range with the onset at `onset_s`, then the onset
+/// within its range, then the size again. Returns the size, its standard
+/// deviation, the onset, and the hypothesis with the step.
 fn fit_loss_step(
     ctx: &Ctx<'_>,
     base: &Hypothesis,
     losses: [f64; 2],
     side: usize,
     onset_s: f64,
+    (size_range, onset_range_s): ((f64, f64), (f64, f64)),
 ) -> (f64, f64, f64, Hypothesis) {
     let with = |v: f64, from_s: f64| {
         let mut h = *base;
@@ -1673,24 +1691,71 @@ fn fit_loss_step(
         h.loss_from_s = from_s;
         h
     };
-    let tracked = losses[side];
     let size_at = |from_s: f64| {
         minimise_1d(
             &|v| ctx.train_nll(&with(v, from_s)),
-            0.7 * tracked,
-            (2.0 * tracked).min(0.95),
+            size_range.0,
+            size_range.1,
             6,
         )
     };
     let (size, _) = size_at(onset_s);
     let (onset_s, _) = minimise_1d(
         &|t| ctx.train_nll(&with(size, t)),
-        (onset_s - 40.0).max(MIN_STEP_ONSET_S / 2.0),
-        onset_s + 10.0,
+        onset_range_s.0,
+        onset_range_s.1,
         10,
     );
     let (size, sd) = size_at(onset_s);
     (size, sd, onset_s, with(size, onset_s))
+}
+
+/// A loss whose track rose within the last [`super::catalogue::LATE_RISE_S`]
+/// of the training part: its estimates at the split are a transient, so it
+/// is fitted as a step on the training part, the size from the tracked one
+/// (a lower bound: the track has not caught up) to 0.95, the onset from
+/// 40 s before the track's to just before the split.
+fn late_step(
+    ctx: &Ctx<'_>,
+    train: Hypothesis,
+    cause: Cause,
+    search: &StateSearch,
+    mut states: AtSplit,
+) -> Fitted {
+    let side = if states.loss[0] >= states.loss[1] {
+        0
+    } else {
+        1
+    };
+    let onset_s = states.loss_onset_s[side];
+    let split_s = ctx.split_s();
+    let mut base = train;
+    (search.off)(&mut base);
+    let ranges = (
+        (states.loss[side].max(0.0), 0.95),
+        (
+            (onset_s - 40.0).max(MIN_STEP_ONSET_S / 2.0),
+            onset_s.min(split_s - 1.0),
+        ),
+    );
+    let (size, sd, onset_s, stepped) =
+        fit_loss_step(ctx, &base, states.loss, side, onset_s, ranges);
+    states.loss[side] = size;
+    states.loss_sigma[side] = sd;
+    states.loss_onset_s[side] = onset_s;
+    state_fitted(ctx, cause, search, stepped, states)
+}
+
+/// The ranges [`fit_loss_step`] searches for a loss the filter tracked to
+/// `tracked` with its track's onset at `onset_s`: the size from 0.7 to 2
+/// times the tracked one (its estimate lags a step by its memory), the
+/// onset from 40 s before to 10 s after the track's (which the same lag
+/// delays).
+fn step_ranges(tracked: f64, onset_s: f64) -> ((f64, f64), (f64, f64)) {
+    (
+        (0.7 * tracked, (2.0 * tracked).min(0.95)),
+        ((onset_s - 40.0).max(MIN_STEP_ONSET_S / 2.0), onset_s + 10.0),
+    )
 }
 
 /// A named loss's side index, its onset and losses, where it is a step
@@ -1739,7 +1804,9 @@ fn refine_loss_step(ctx: &Ctx<'_>, model: &mut Accepted, findings: &mut [Finding
     if !matches!(model.hypothesis.loss, Term::Fixed(_)) {
         return false;
     }
-    let (size, sd, onset_s, stepped) = fit_loss_step(ctx, &model.hypothesis, losses, side, onset_s);
+    let ranges = step_ranges(losses[side], onset_s);
+    let (size, sd, onset_s, stepped) =
+        fit_loss_step(ctx, &model.hypothesis, losses, side, onset_s, ranges);
     let out = ctx.pass(&stepped, false);
     if out.failed {
         return false;
@@ -1775,6 +1842,9 @@ fn find_loss_after_training(ctx: &Ctx<'_>, model: &mut Accepted, findings: &mut 
     let acc = &ctx.config.acceptance;
     let mut tracked = model.hypothesis;
     (search.free)(&mut tracked);
+    if let Some(late) = &search.late_rise {
+        (late.track)(&mut tracked);
+    }
     let out = ctx.pass(&tracked, false);
     let at_split = out.at_split;
     let none_at_split = (0..2).all(|side| {
@@ -1803,27 +1873,56 @@ fn find_loss_after_training(ctx: &Ctx<'_>, model: &mut Accepted, findings: &mut 
     if missed_bar(&fitted, gain, forecasts, acc).is_some() {
         return;
     }
-    let mut found = finding(&fitted, &out, gain, &model.out);
-    let split_s = ctx.prep.steps[ctx.split].fix.time_s - ctx.prep.steps[0].fix.time_s;
+    findings.push(finding(&fitted, &out, gain, &model.out));
+    model.hypothesis = tracked;
+    model.out = out;
+}
+
+/// A loss the model tracks through the held-out part (it rose late in the
+/// training part, or after it) reported from the whole log: its states at
+/// the log's end, and where it is a step, its size and onset fitted as one
+/// over the whole log ([`fit_loss_step`]). A report only: its gain stays
+/// the tracked losses' own, judged on the held-out part.
+fn size_tracked_loss(ctx: &Ctx<'_>, model: &Accepted, findings: &mut [Finding]) {
+    let cause = Cause::ThrusterLoss;
+    let Search::States(search) = &cause.spec().search else {
+        return;
+    };
+    let Some(k) = findings.iter().position(|f| f.cause == cause) else {
+        return;
+    };
+    if !model.hypothesis.loss_tracked {
+        return;
+    }
+    let whole_log = Ctx {
+        split: ctx.prep.steps.len(),
+        memo: None,
+        ..*ctx
+    };
+    let at_end = whole_log.pass(&model.hypothesis, true);
+    if at_end.failed {
+        return;
+    }
+    let report = (search.report)(&at_end.at_split, &ctx.config.acceptance);
+    let found = &mut findings[k];
+    (found.parameters, found.side) = (report.parameters, report.side);
     let mut how = "its size the estimate at the log's end".to_string();
-    if let Some((side, onset_s, losses)) = loss_step_of(&found) {
-        // The held-out part holds all of the loss: its size fitted as a
-        // step over the whole log (a report; the gain stays the tracked
-        // losses' own).
+    if let Some((side, onset_s, losses)) = loss_step_of(found) {
+        let mut before = model.hypothesis;
+        (search.off)(&mut before);
+        let ranges = step_ranges(losses[side], onset_s);
         let (size, sd, onset_s, _) =
-            fit_loss_step(&whole_log, &model.hypothesis, losses, side, onset_s);
-        set_step(&mut found, side, size, sd, onset_s);
+            fit_loss_step(&whole_log, &before, losses, side, onset_s, ranges);
+        set_step(found, side, size, sd, onset_s);
         how = "its size and onset fitted as a step over the whole log".to_string();
     }
     found.evidence.insert(
         0,
         format!(
-            "it starts after the training part (which ends at {split_s:.0} s): judged as the losses the filter tracks through the held-out part, {how}"
+            "it starts late (the training part ends at {:.0} s): judged as the losses the filter tracks through the held-out part, {how}",
+            ctx.split_s()
         ),
     );
-    findings.push(found);
-    model.hypothesis = tracked;
-    model.out = out;
 }
 
 /// Diagnoses a prepared log.
@@ -1911,6 +2010,7 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     refine_dynamics_sizes(&ctx, &mut model, &mut findings, &mut rejected);
     name_shared_parts(&ctx, &mut model, &mut findings);
     find_loss_after_training(&ctx, &mut model, &mut findings);
+    size_tracked_loss(&ctx, &model, &mut findings);
     judge_each_against_the_rest(&ctx, &model, &mut findings);
     // A cause rejected in one round, or tried alone and with a companion,
     // can be named in the end (in a finding's place, or as a companion):

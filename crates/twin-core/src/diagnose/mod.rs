@@ -60,8 +60,9 @@
 //!    biases a dynamics parameter towards a faster-contracting hull.
 //!    A loss whose onset is more than 30 s into the log is a step: its
 //!    size and onset are fitted as one on the training part (the filter's
-//!    estimate lags a step), and a finding that only stood in for that lag
-//!    is dropped. Where no loss is named, the losses are then tracked by
+//!    estimate lags a step; one that rose within the training part's last
+//!    40 s is fitted so already when it is a candidate), and a finding
+//!    that only stood in for that lag is dropped. Where no loss is named, the losses are then tracked by
 //!    the filter through the held-out part as well: a loss that starts
 //!    there, with nothing to fit in the training part, is named where the
 //!    tracked losses are nothing at the split and clear the same bars on
