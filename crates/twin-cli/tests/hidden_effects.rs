@@ -98,10 +98,15 @@ fn a_current_and_a_propeller_loss_are_both_named() {
     assert!((loss.parameters["loss"].as_f64().unwrap() - 0.22).abs() <= 0.044);
 }
 
-/// Diagnoses the base trial (seed `seed`) with a loss of 0.3 on `side`
-/// from `onset_s`, and requires that loss alone named, its size within
-/// 20 % and its onset within 30 s.
-fn assert_loss_found_with_its_onset(seed: u64, side: &str, onset_s: f64) {
+/// Diagnoses the base trial (seed `seed`) with a loss of `truth` on `side`
+/// from `onset_s`: `Err` with what was named unless that loss alone is
+/// named, its size within 20 % and its onset within 30 s.
+fn loss_found_with_its_onset(
+    seed: u64,
+    side: &str,
+    truth: f64,
+    onset_s: f64,
+) -> Result<(), String> {
     let mut sc = base();
     sc.seed = seed;
     let propeller = if side == "port" {
@@ -109,27 +114,31 @@ fn assert_loss_found_with_its_onset(seed: u64, side: &str, onset_s: f64) {
     } else {
         &mut sc.propellers.starboard
     };
-    propeller.loss = 0.3;
+    propeller.loss = truth;
     propeller.onset_s = onset_s;
     let r = diagnose_scenario(&sc, &format!("loss-from-{onset_s}s"));
-    let causes: Vec<&str> = r.findings.iter().map(|f| f.cause.as_str()).collect();
-    assert_eq!(causes, ["thruster_loss"], "{:?}", r.findings);
-    let f = &r.findings[0];
-    assert_eq!(f.parameters["side"], side);
-    let loss = f.parameters["loss"].as_f64().unwrap();
-    assert!((loss - 0.3).abs() <= 0.2 * 0.3, "loss {loss}");
-    let onset = f.parameters["onset_s"].as_f64().expect("an onset");
-    assert!(
-        (onset - onset_s).abs() <= 30.0,
-        "onset {onset} s, truth {onset_s} s"
+    let what = format!(
+        "{side} {truth:.3} from {onset_s:.1} s (seed {seed}): {:?}",
+        r.findings
     );
+    let causes: Vec<&str> = r.findings.iter().map(|f| f.cause.as_str()).collect();
+    let [f] = r.findings.as_slice() else {
+        return Err(what);
+    };
+    let loss = f.parameters["loss"].as_f64().unwrap_or(f64::NAN);
+    let onset = f.parameters["onset_s"].as_f64().unwrap_or(f64::NAN);
+    let within = causes == ["thruster_loss"]
+        && f.parameters["side"] == side
+        && (loss - truth).abs() <= 0.2 * truth
+        && (onset - onset_s).abs() <= 30.0;
+    if within { Ok(()) } else { Err(what) }
 }
 
 /// A loss that starts mid-log is named with its onset: the time from
 /// which the filter's loss estimate stays above half its final value.
 #[test]
 fn a_loss_that_starts_mid_log_is_found_with_its_onset() {
-    assert_loss_found_with_its_onset(777, "port", 90.0);
+    loss_found_with_its_onset(777, "port", 0.3, 90.0).unwrap();
 }
 
 /// A loss from 120 s has a minute of the training part: the filter's
@@ -137,7 +146,7 @@ fn a_loss_that_starts_mid_log_is_found_with_its_onset() {
 /// as a step at its onset, it is named within the same bars.
 #[test]
 fn a_loss_a_minute_before_the_split_is_sized_as_a_step() {
-    assert_loss_found_with_its_onset(779, "port", 120.0);
+    loss_found_with_its_onset(779, "port", 0.3, 120.0).unwrap();
 }
 
 /// A loss from 160 s has 20 s of the training part: the filter's estimate
@@ -146,7 +155,7 @@ fn a_loss_a_minute_before_the_split_is_sized_as_a_step() {
 /// rose late, so it is fitted as a step on those 20 s.
 #[test]
 fn a_loss_just_before_the_split_is_sized_as_a_step() {
-    assert_loss_found_with_its_onset(780, "starboard", 160.0);
+    loss_found_with_its_onset(780, "starboard", 0.3, 160.0).unwrap();
 }
 
 /// A loss that starts in the held-out part (the last 40 % of the log,
@@ -154,5 +163,44 @@ fn a_loss_just_before_the_split_is_sized_as_a_step() {
 /// the losses the filter tracks through the held-out part, with its onset.
 #[test]
 fn a_loss_that_starts_in_the_held_out_part_is_found_with_its_onset() {
-    assert_loss_found_with_its_onset(778, "starboard", 200.0);
+    loss_found_with_its_onset(778, "starboard", 0.3, 200.0).unwrap();
+}
+
+/// Losses of 15-40 % from onsets drawn across the log, three in each of
+/// four bands: early in the training part (40-110 s), late in it
+/// (110-180 s: the filter's estimate at the split at 180 s has not caught
+/// up), early in the held-out part (180-240 s) and late in it (240-285 s),
+/// on either side: each alone named, within the same bars.
+#[test]
+fn losses_from_onsets_across_the_log_are_found_with_their_onsets() {
+    let mut rng = StdRng::seed_from_u64(20261128);
+    let bands_s = [
+        (40.0, 110.0),
+        (110.0, 180.0),
+        (180.0, 240.0),
+        (240.0, 285.0),
+    ];
+    let draws: Vec<(u64, &str, f64, f64)> = bands_s
+        .iter()
+        .flat_map(|band| [*band; 3])
+        .map(|(from_s, to_s)| {
+            (
+                rng.random_range(1..1_000_000),
+                if rng.random_bool(0.5) {
+                    "port"
+                } else {
+                    "starboard"
+                },
+                rng.random_range(0.15..0.4),
+                rng.random_range(from_s..to_s),
+            )
+        })
+        .collect();
+    let failures: Vec<String> = on_two_threads(&draws, |(seed, side, truth, onset_s)| {
+        loss_found_with_its_onset(*seed, side, *truth, *onset_s).err()
+    })
+    .into_iter()
+    .flatten()
+    .collect();
+    assert!(failures.is_empty(), "missed: {failures:#?}");
 }

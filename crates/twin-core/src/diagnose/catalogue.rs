@@ -163,32 +163,29 @@ pub(super) struct StateSearch {
     pub late_rise: Option<LateRise>,
 }
 
-/// States that can start late in the log. Risen within the last
-/// [`LATE_RISE_S`] of the training part, their estimates at the split are
-/// a transient, not their size, and fixed there they would judge the
-/// held-out part with a fraction of the cause: the loss is fitted as a step
-/// on the training part instead. Nothing at the split, they may start in
-/// the held-out part: they are then left tracked by the filter through it,
-/// whose one-step-ahead predictions stay causal, so that the held-out
-/// likelihood still judges them.
+/// States that can start late in the log. Started more than
+/// [`LATE_START_S`] into it, their estimates at the split lag the start
+/// (the filter forgets slowly), and fixed there they would judge the
+/// held-out part with a fraction of the cause: the loss is fitted as a
+/// step at its onset on the training part instead. Nothing at the split,
+/// they may start in the held-out part: they are then left tracked by the
+/// filter through it, whose one-step-ahead predictions stay causal, so
+/// that the held-out likelihood still judges them.
 pub(super) struct LateRise {
-    /// Whether the states rose within the last [`LATE_RISE_S`] of the
-    /// training part (the estimates at the split, and the split's time from
-    /// the log's first fix, s).
-    pub rising: fn(&AtSplit, f64) -> bool,
+    /// Whether the estimates at the split started after [`LATE_START_S`].
+    pub starts_late: fn(&AtSplit) -> bool,
     /// Leaves them tracked through the held-out part in a hypothesis.
     pub track: fn(&mut Hypothesis),
 }
 
-/// How late in the training part a rise makes the estimates at the split a
-/// transient, s: a loss's track, which lags the step by the filter's memory,
-/// has moved about half of it within this.
-pub(super) const LATE_RISE_S: f64 = 40.0;
+/// A loss whose track rose later than this after the log's first fix is a
+/// step at its onset; an earlier one is there from the start, s.
+pub(super) const LATE_START_S: f64 = 30.0;
 
-/// Whether the larger loss's track rose within [`LATE_RISE_S`] of the split.
-fn loss_rising(s: &AtSplit, split_s: f64) -> bool {
+/// Whether the larger loss's track rose after [`LATE_START_S`].
+fn loss_starts_late(s: &AtSplit) -> bool {
     let side = if s.loss[0] >= s.loss[1] { 0 } else { 1 };
-    s.loss_onset_s[side] >= split_s - LATE_RISE_S
+    s.loss_onset_s[side] >= LATE_START_S
 }
 
 /// The part of a state cause's estimates that another cause imitates
@@ -399,7 +396,7 @@ static THRUSTER_LOSS: CauseSpec = CauseSpec {
             what: "the loss both propellers shared",
         }),
         late_rise: Some(LateRise {
-            rising: loss_rising,
+            starts_late: loss_starts_late,
             track: |h| h.loss_tracked = true,
         }),
     }),

@@ -5,7 +5,8 @@
 //! function.
 
 use super::catalogue::{
-    Cause, LogKind, OUTSIDE_HULL, PlaneSearch, ScalarSearch, Search, SharedPart, StateSearch,
+    Cause, LATE_START_S, LogKind, OUTSIDE_HULL, PlaneSearch, ScalarSearch, Search, SharedPart,
+    StateSearch,
 };
 use super::noise_level;
 use super::pass::{AtSplit, PassOptions, PassOut, kinetic_pass, water_pass};
@@ -536,9 +537,9 @@ fn fit_with_shared(ctx: &Ctx<'_>, accepted: &Hypothesis, alone: &Fitted) -> Opti
     };
     let shared = search.shared.as_ref()?;
     let states = alone.states?;
-    // States that rose late are a transient at the split: what they share
-    // there is not the hull's.
-    if alone.hypothesis.loss_tracked {
+    // A loss that starts late (a step, or tracked through the held-out
+    // part) shares nothing with the hull, which was there from the start.
+    if alone.hypothesis.loss_tracked || alone.hypothesis.loss_from_s > 0.0 {
         return None;
     }
     let practical = (search.report)(&states, &ctx.config.acceptance).practical;
@@ -768,7 +769,7 @@ fn fit_states(
     }
     let s = out.at_split;
     if let Some(late) = &search.late_rise
-        && (late.rising)(&s, ctx.split_s())
+        && (late.starts_late)(&s)
     {
         return Some(late_step(ctx, train, cause, search, s));
     }
@@ -1665,11 +1666,6 @@ fn take_refined_sizes(
     }
 }
 
-/// A loss whose track rises later than this after the log's first fix is
-/// a step at its onset, and its size is fitted as one
-/// ([`fit_loss_step`]); an earlier one is there from the start.
-const MIN_STEP_ONSET_S: f64 = 30.0;
-
 /// The named side's loss fitted as a step (none before its onset, its size
 /// after, the other side's loss held) by the training likelihood of `ctx`:
 /// the size within its range with the onset at `onset_s`, then the onset
@@ -1710,11 +1706,9 @@ fn fit_loss_step(
     (size, sd, onset_s, with(size, onset_s))
 }
 
-/// A loss whose track rose within the last [`super::catalogue::LATE_RISE_S`]
-/// of the training part: its estimates at the split are a transient, so it
-/// is fitted as a step on the training part, the size from the tracked one
-/// (a lower bound: the track has not caught up) to 0.95, the onset from
-/// 40 s before the track's to just before the split.
+/// A loss whose track rose after [`LATE_START_S`]: its estimates at the
+/// split lag the start, so it is fitted as a step at its onset on the
+/// training part ([`fit_loss_step`], [`step_ranges`]).
 fn late_step(
     ctx: &Ctx<'_>,
     train: Hypothesis,
@@ -1731,13 +1725,7 @@ fn late_step(
     let split_s = ctx.split_s();
     let mut base = train;
     (search.off)(&mut base);
-    let ranges = (
-        (states.loss[side].max(0.0), 0.95),
-        (
-            (onset_s - 40.0).max(MIN_STEP_ONSET_S / 2.0),
-            onset_s.min(split_s - 1.0),
-        ),
-    );
+    let ranges = step_ranges(states.loss[side], onset_s, split_s - 1.0);
     let (size, sd, onset_s, stepped) =
         fit_loss_step(ctx, &base, states.loss, side, onset_s, ranges);
     states.loss[side] = size;
@@ -1747,26 +1735,29 @@ fn late_step(
 }
 
 /// The ranges [`fit_loss_step`] searches for a loss the filter tracked to
-/// `tracked` with its track's onset at `onset_s`: the size from 0.7 to 2
-/// times the tracked one (its estimate lags a step by its memory), the
-/// onset from 40 s before to 10 s after the track's (which the same lag
-/// delays).
-fn step_ranges(tracked: f64, onset_s: f64) -> ((f64, f64), (f64, f64)) {
+/// `tracked` with its track's onset at `onset_s`: the size from 0.7 times
+/// the tracked one (its estimate lags a step by its memory) to 0.95, the
+/// onset from 40 s before the track's (which the same lag delays) to 10 s
+/// after it, and not after `latest_s`.
+fn step_ranges(tracked: f64, onset_s: f64, latest_s: f64) -> ((f64, f64), (f64, f64)) {
     (
-        (0.7 * tracked, (2.0 * tracked).min(0.95)),
-        ((onset_s - 40.0).max(MIN_STEP_ONSET_S / 2.0), onset_s + 10.0),
+        ((0.7 * tracked).max(0.0), 0.95),
+        (
+            (onset_s - 40.0).max(LATE_START_S / 2.0),
+            (onset_s + 10.0).min(latest_s),
+        ),
     )
 }
 
 /// A named loss's side index, its onset and losses, where it is a step
-/// (an onset after [`MIN_STEP_ONSET_S`]).
+/// (an onset after [`LATE_START_S`]).
 fn loss_step_of(f: &Finding) -> Option<(usize, f64, [f64; 2])> {
     let value = |name: &str| f.parameters.iter().find(|p| p.0 == name).map(|p| p.1);
     let side = match f.side? {
         "port" => 0,
         _ => 1,
     };
-    let onset_s = value("onset_s").filter(|t| *t >= MIN_STEP_ONSET_S)?;
+    let onset_s = value("onset_s").filter(|t| *t >= LATE_START_S)?;
     Some((
         side,
         onset_s,
@@ -1788,37 +1779,6 @@ fn set_step(f: &mut Finding, side: usize, size: f64, sd: f64, onset_s: f64) {
             p.1 = onset_s;
         }
     }
-}
-
-/// A loss named with an onset inside the training part is a step there:
-/// its size fitted as one on the training part ([`fit_loss_step`]) rather
-/// than read off the filter's estimate at the split, which lags it, and
-/// the model takes the step. Returns whether it did.
-fn refine_loss_step(ctx: &Ctx<'_>, model: &mut Accepted, findings: &mut [Finding]) -> bool {
-    let Some(k) = findings.iter().position(|f| f.cause == Cause::ThrusterLoss) else {
-        return false;
-    };
-    let Some((side, onset_s, losses)) = loss_step_of(&findings[k]) else {
-        return false;
-    };
-    if !matches!(model.hypothesis.loss, Term::Fixed(_)) {
-        return false;
-    }
-    let ranges = step_ranges(losses[side], onset_s);
-    let (size, sd, onset_s, stepped) =
-        fit_loss_step(ctx, &model.hypothesis, losses, side, onset_s, ranges);
-    let out = ctx.pass(&stepped, false);
-    if out.failed {
-        return false;
-    }
-    set_step(&mut findings[k], side, size, sd, onset_s);
-    findings[k].evidence.insert(
-        0,
-        "a step: its size and onset fitted as one on the training part".to_string(),
-    );
-    model.hypothesis = stepped;
-    model.out = out;
-    true
 }
 
 /// A propeller loss that starts in the held-out part. The training part has
@@ -1878,11 +1838,11 @@ fn find_loss_after_training(ctx: &Ctx<'_>, model: &mut Accepted, findings: &mut 
     model.out = out;
 }
 
-/// A loss the model tracks through the held-out part (it rose late in the
-/// training part, or after it) reported from the whole log: its states at
-/// the log's end, and where it is a step, its size and onset fitted as one
-/// over the whole log ([`fit_loss_step`]). A report only: its gain stays
-/// the tracked losses' own, judged on the held-out part.
+/// A loss that starts late, reported as such. One the model tracks through
+/// the held-out part (it starts there) is reported from the whole log: its
+/// states at the log's end, and where it is a step, its size and onset
+/// fitted as one over the whole log ([`fit_loss_step`]); a report only,
+/// its gain stays the tracked losses' own, judged on the held-out part.
 fn size_tracked_loss(ctx: &Ctx<'_>, model: &Accepted, findings: &mut [Finding]) {
     let cause = Cause::ThrusterLoss;
     let Search::States(search) = &cause.spec().search else {
@@ -1892,6 +1852,13 @@ fn size_tracked_loss(ctx: &Ctx<'_>, model: &Accepted, findings: &mut [Finding]) 
         return;
     };
     if !model.hypothesis.loss_tracked {
+        if model.hypothesis.loss_from_s > 0.0 {
+            findings[k].evidence.insert(
+                0,
+                "it starts late: a step, its size and onset fitted as one on the training part"
+                    .to_string(),
+            );
+        }
         return;
     }
     let whole_log = Ctx {
@@ -1910,7 +1877,9 @@ fn size_tracked_loss(ctx: &Ctx<'_>, model: &Accepted, findings: &mut [Finding]) 
     if let Some((side, onset_s, losses)) = loss_step_of(found) {
         let mut before = model.hypothesis;
         (search.off)(&mut before);
-        let ranges = step_ranges(losses[side], onset_s);
+        let end_s =
+            ctx.prep.steps[ctx.prep.steps.len() - 1].fix.time_s - ctx.prep.steps[0].fix.time_s;
+        let ranges = step_ranges(losses[side], onset_s, end_s - 1.0);
         let (size, sd, onset_s, _) =
             fit_loss_step(&whole_log, &before, losses, side, onset_s, ranges);
         set_step(found, side, size, sd, onset_s);
@@ -2000,11 +1969,6 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     // in, for a yaw damping that stood in for it).
     let applicable: Vec<Cause> = Cause::ALL.into_iter().filter(|c| c.applies(&log)).collect();
     if refit_jointly(&ctx, &applicable, &mut model, &mut findings, &mut rejected) {
-        drop_redundant(&ctx, &mut model, &mut findings, &mut rejected);
-    }
-    // A finding that stood in for the lag of a loss's estimate gains
-    // nothing once the loss is a step.
-    if refine_loss_step(&ctx, &mut model, &mut findings) {
         drop_redundant(&ctx, &mut model, &mut findings, &mut rejected);
     }
     refine_dynamics_sizes(&ctx, &mut model, &mut findings, &mut rejected);

@@ -58,16 +58,15 @@
 //!    (`noise_level`): the search holds that noise at the harbour water's,
 //!    and a likelihood maximised with a noise level that is not the data's
 //!    biases a dynamics parameter towards a faster-contracting hull.
-//!    A loss whose onset is more than 30 s into the log is a step: its
-//!    size and onset are fitted as one on the training part (the filter's
-//!    estimate lags a step; one that rose within the training part's last
-//!    40 s is fitted so already when it is a candidate), and a finding
-//!    that only stood in for that lag is dropped. Where no loss is named, the losses are then tracked by
-//!    the filter through the held-out part as well: a loss that starts
-//!    there, with nothing to fit in the training part, is named where the
-//!    tracked losses are nothing at the split and clear the same bars on
-//!    the held-out part, its size and onset fitted as a step over the
-//!    whole log.
+//!    A loss whose estimate rises more than 30 s into the log is a step:
+//!    its size and onset are fitted as one on the training part when it
+//!    is a candidate (the filter's estimate at the split lags a step).
+//!    Where no loss is named, the losses are then tracked by the filter
+//!    through the held-out part as well: a loss that starts there, with
+//!    nothing to fit in the training part, is named where the tracked
+//!    losses are nothing at the split and clear the same bars on the
+//!    held-out part, its size and onset fitted as a step over the whole
+//!    log.
 //! 6. **Report** ([`Diagnosis`]): per finding the cause, its parameters
 //!    with uncertainty, the evidence in the residuals, and the gain on
 //!    held-out data against the model with every other finding
