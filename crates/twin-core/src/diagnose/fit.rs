@@ -1,8 +1,9 @@
 //! The fitting of the catalogue's causes ([`super::catalogue`]) on the
 //! training part, their judgement on the held-out part, and the greedy
-//! selection (see the module doc of [`crate::diagnose`]). Nothing here is
-//! written per cause: each search kind of the catalogue has one fitting
-//! function.
+//! selection (see the module doc of [`crate::diagnose`]). Each search kind
+//! of the catalogue has one fitting function; the one thing written for a
+//! cause is the step of a loss that starts late (the catalogue's
+//! `LateRise`: `late_step`, `find_loss_after_training`, `size_tracked_loss`).
 
 use super::catalogue::{
     Cause, LATE_START_S, LogKind, OUTSIDE_HULL, PlaneSearch, ScalarSearch, Search, SharedPart,

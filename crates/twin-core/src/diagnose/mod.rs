@@ -58,10 +58,11 @@
 //!    (`noise_level`): the search holds that noise at the harbour water's,
 //!    and a likelihood maximised with a noise level that is not the data's
 //!    biases a dynamics parameter towards a faster-contracting hull.
-//!    A loss whose estimate rises more than 30 s into the log is a step:
-//!    its size and onset are fitted as one on the training part when it
-//!    is a candidate (the filter's estimate at the split lags a step).
-//!    Where no loss is named, the losses are then tracked by the filter
+//!    In every round, a loss candidate whose estimate rises more than 30 s
+//!    into the log is a step: its size and onset are fitted as one on the
+//!    training part (the filter's estimate at the split lags a step, and
+//!    shortly after the onset is a transient). At the end, where no loss
+//!    is named, the losses are tracked by the filter
 //!    through the held-out part as well: a loss that starts there, with
 //!    nothing to fit in the training part, is named where the tracked
 //!    losses are nothing at the split and clear the same bars on the
