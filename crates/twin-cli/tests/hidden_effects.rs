@@ -14,6 +14,8 @@ mod twin_sim_draws;
 use hidden::{Hidden, describe, judge, named};
 use twin_sim_draws::{apply, base, diagnose_scenario, draw, on_two_threads};
 
+use twin_cli::diagnose::DiagnoseReport;
+
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
@@ -100,13 +102,13 @@ fn a_current_and_a_propeller_loss_are_both_named() {
 
 /// Diagnoses the base trial (seed `seed`) with a loss of `truth` on `side`
 /// from `onset_s`: `Err` with what was named unless that loss alone is
-/// named, its size within 20 % and its onset within 30 s.
+/// named, its size within 20 % and its onset within 30 s; else the report.
 fn loss_found_with_its_onset(
     seed: u64,
     side: &str,
     truth: f64,
     onset_s: f64,
-) -> Result<(), String> {
+) -> Result<DiagnoseReport, String> {
     let mut sc = base();
     sc.seed = seed;
     let propeller = if side == "port" {
@@ -131,7 +133,7 @@ fn loss_found_with_its_onset(
         && f.parameters["side"] == side
         && (loss - truth).abs() <= 0.2 * truth
         && (onset - onset_s).abs() <= 30.0;
-    if within { Ok(()) } else { Err(what) }
+    if within { Ok(r) } else { Err(what) }
 }
 
 /// A loss that starts mid-log is named with its onset: the time from
@@ -163,7 +165,10 @@ fn a_loss_just_before_the_split_is_sized_as_a_step() {
 /// the losses the filter tracks through the held-out part, with its onset.
 #[test]
 fn a_loss_that_starts_in_the_held_out_part_is_found_with_its_onset() {
-    loss_found_with_its_onset(778, "starboard", 0.3, 200.0).unwrap();
+    let r = loss_found_with_its_onset(778, "starboard", 0.3, 200.0).unwrap();
+    // The tracked loss lags the step for a minute; after that, the model
+    // explains the held-out data.
+    assert!(r.unexplained.is_none(), "{:?}", r.unexplained);
 }
 
 /// Losses of 15-40 % from onsets drawn across the log, three in each of

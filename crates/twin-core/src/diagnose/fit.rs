@@ -234,7 +234,8 @@ pub struct Diagnosis {
     /// findings dropped when judged again with all the others.
     pub rejected: Vec<Rejected>,
     /// What the findings leave unexplained, when the extended model's
-    /// held-out residuals are still well outside what the filter expects.
+    /// held-out residuals are still well outside what the filter expects
+    /// (after a tracked loss has settled: `settled_records`).
     pub unexplained: Option<Unexplained>,
     /// The nominal model's innovations over the held-out part (for plots).
     pub nominal_records: Vec<InnovationRecord>,
@@ -1895,6 +1896,43 @@ fn size_tracked_loss(ctx: &Ctx<'_>, model: &Accepted, findings: &mut [Finding]) 
     );
 }
 
+/// Fewest held-out records a verdict is judged on when a tracked loss's
+/// settling is left out (30 s at 5 Hz); with fewer, all are.
+const MIN_SETTLED_RECORDS: usize = 150;
+
+/// The held-out records the verdict on the extended model is judged on:
+/// all of them, except where the model tracks a loss that starts late
+/// through the held-out part. Its estimate lags the step by the filter's
+/// memory for losses, which biases the innovations that follow the onset;
+/// that is the tracking's lag, not something the catalogue lacks, so the
+/// verdict is judged from one memory after the onset on (where that
+/// leaves enough records).
+fn settled_records<'r>(
+    ctx: &Ctx<'_>,
+    model: &Accepted,
+    findings: &[Finding],
+    records: &'r [InnovationRecord],
+) -> &'r [InnovationRecord] {
+    let onset_s = findings
+        .iter()
+        .find(|f| f.cause == Cause::ThrusterLoss)
+        .and_then(|f| f.parameters.iter().find(|p| p.0 == "onset_s"))
+        .map(|p| p.1);
+    let Some(onset_s) = onset_s.filter(|_| model.hypothesis.loss_tracked) else {
+        return records;
+    };
+    let filter = &ctx.config.twin.kinetic.filter;
+    let memory_s = filter.forgetting_time_constant_s
+        * filter.fault_memory_factor[crate::models::otter_twin::fault::PORT];
+    let settled_s = ctx.prep.steps[0].fix.time_s + onset_s + memory_s;
+    let from = records.partition_point(|r| r.time_s < settled_s);
+    if records.len() - from >= MIN_SETTLED_RECORDS {
+        &records[from..]
+    } else {
+        records
+    }
+}
+
 /// Diagnoses a prepared log.
 pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     let base = if prep.has_propellers {
@@ -1981,10 +2019,11 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     // can be named in the end (in a finding's place, or as a companion):
     // the finding stands.
     rejected.retain(|r| findings.iter().all(|f| f.cause != r.cause));
+    let settled = summarise(settled_records(&ctx, &model, &findings, &model.out.records));
     let current_out = model.out;
     let extended = summarise(&current_out.records);
     Diagnosis {
-        unexplained: unexplained(&extended, acc),
+        unexplained: unexplained(&settled, acc),
         base,
         steps: n,
         training_steps: split,
