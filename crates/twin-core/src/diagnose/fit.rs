@@ -1790,9 +1790,10 @@ fn set_step(f: &mut Finding, side: usize, size: f64, sd: f64, onset_s: f64) {
 /// likelihood judges the tracked losses as it judges a fitted cause, with
 /// the same bars. Named only where the tracked loss is nothing at the
 /// split (below its practical size, or within its bar of standard
-/// deviations) and clears the bars at the log's end: its size is the
-/// filter's estimate there (lagging a step by the filter's memory), its
-/// onset read off the track over the whole log.
+/// deviations) and clears the bars at the log's end, where its size is
+/// the filter's estimate (lagging a step by the filter's memory) and its
+/// onset is read off the track over the whole log, until
+/// [`size_tracked_loss`] fits it as a step.
 fn find_loss_after_training(ctx: &Ctx<'_>, model: &mut Accepted, findings: &mut Vec<Finding>) {
     let cause = Cause::ThrusterLoss;
     let Search::States(search) = &cause.spec().search else {
