@@ -182,10 +182,15 @@ pub(super) struct LateRise {
 /// step at its onset; an earlier one is there from the start, s.
 pub(super) const LATE_START_S: f64 = 30.0;
 
+/// The side of the larger loss (0 port, 1 starboard): the side a loss
+/// finding names.
+pub(super) fn larger_loss_side(s: &AtSplit) -> usize {
+    if s.loss[0] >= s.loss[1] { 0 } else { 1 }
+}
+
 /// Whether the larger loss's track rose after [`LATE_START_S`].
 fn loss_starts_late(s: &AtSplit) -> bool {
-    let side = if s.loss[0] >= s.loss[1] { 0 } else { 1 };
-    s.loss_onset_s[side] >= LATE_START_S
+    s.loss_onset_s[larger_loss_side(s)] >= LATE_START_S
 }
 
 /// The part of a state cause's estimates that another cause imitates
@@ -301,7 +306,7 @@ fn current_report(s: &AtSplit, acc: &Acceptance) -> StateReport {
 
 /// The losses, the larger one naming the side.
 fn loss_report(s: &AtSplit, acc: &Acceptance) -> StateReport {
-    let side = if s.loss[0] >= s.loss[1] { 0 } else { 1 };
+    let side = larger_loss_side(s);
     let mut parameters = vec![
         ("loss", s.loss[side], s.loss_sigma[side]),
         ("loss_port", s.loss[0], s.loss_sigma[0]),

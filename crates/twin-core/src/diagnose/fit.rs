@@ -7,7 +7,7 @@
 
 use super::catalogue::{
     Cause, LATE_START_S, LogKind, OUTSIDE_HULL, PlaneSearch, ScalarSearch, Search, SharedPart,
-    StateSearch,
+    StateSearch, larger_loss_side,
 };
 use super::noise_level;
 use super::pass::{AtSplit, PassOptions, PassOut, kinetic_pass, water_pass};
@@ -346,7 +346,19 @@ impl<'a> Ctx<'a> {
         }
     }
 
-    /// The split's time from the log's first fix, s.
+    /// The same log and configuration with the whole log as the training
+    /// part (the states at its end, the tracks over all of it), without the
+    /// memo (its passes were split elsewhere).
+    fn over_whole_log(&self) -> Self {
+        Ctx {
+            split: self.prep.steps.len(),
+            memo: None,
+            ..*self
+        }
+    }
+
+    /// The split's time from the log's first fix, s (a split inside the
+    /// log).
     fn split_s(&self) -> f64 {
         self.prep.steps[self.split].fix.time_s - self.prep.steps[0].fix.time_s
     }
@@ -1718,11 +1730,7 @@ fn late_step(
     search: &StateSearch,
     mut states: AtSplit,
 ) -> Fitted {
-    let side = if states.loss[0] >= states.loss[1] {
-        0
-    } else {
-        1
-    };
+    let side = larger_loss_side(&states);
     let onset_s = states.loss_onset_s[side];
     let split_s = ctx.split_s();
     let mut base = train;
@@ -1818,11 +1826,7 @@ fn find_loss_after_training(ctx: &Ctx<'_>, model: &mut Accepted, findings: &mut 
         return;
     }
     // The states at the log's end, the onsets from the whole track.
-    let whole_log = Ctx {
-        split: ctx.prep.steps.len(),
-        memo: None,
-        ..*ctx
-    };
+    let whole_log = ctx.over_whole_log();
     let at_end = whole_log.pass(&tracked, true);
     if at_end.failed {
         return;
@@ -1864,11 +1868,7 @@ fn size_tracked_loss(ctx: &Ctx<'_>, model: &Accepted, findings: &mut [Finding]) 
         }
         return;
     }
-    let whole_log = Ctx {
-        split: ctx.prep.steps.len(),
-        memo: None,
-        ..*ctx
-    };
+    let whole_log = ctx.over_whole_log();
     let at_end = whole_log.pass(&model.hypothesis, true);
     if at_end.failed {
         return;
