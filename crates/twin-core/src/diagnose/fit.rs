@@ -1759,22 +1759,6 @@ fn step_ranges(tracked: f64, onset_s: f64, latest_s: f64) -> ((f64, f64), (f64, 
     )
 }
 
-/// A named loss's side index, its onset and losses, where it is a step
-/// (an onset after [`LATE_START_S`]).
-fn loss_step_of(f: &Finding) -> Option<(usize, f64, [f64; 2])> {
-    let value = |name: &str| f.parameters.iter().find(|p| p.0 == name).map(|p| p.1);
-    let side = match f.side? {
-        "port" => 0,
-        _ => 1,
-    };
-    let onset_s = value("onset_s").filter(|t| *t >= LATE_START_S)?;
-    Some((
-        side,
-        onset_s,
-        [value("loss_port")?, value("loss_starboard")?],
-    ))
-}
-
 /// Puts a step's fitted size and onset in a loss finding's parameters.
 fn set_step(f: &mut Finding, side: usize, size: f64, sd: f64, onset_s: f64) {
     let side_name = if side == 0 {
@@ -1877,7 +1861,12 @@ fn size_tracked_loss(ctx: &Ctx<'_>, model: &Accepted, findings: &mut [Finding]) 
     let found = &mut findings[k];
     (found.parameters, found.side) = (report.parameters, report.side);
     let mut how = "its size the estimate at the log's end".to_string();
-    if let Some((side, onset_s, losses)) = loss_step_of(found) {
+    // The tracked losses at the log's end, the larger naming the side (as
+    // the report does): a step where its track rose late.
+    let tracked = &at_end.at_split;
+    let side = larger_loss_side(tracked);
+    let (onset_s, losses) = (tracked.loss_onset_s[side], tracked.loss);
+    if onset_s >= LATE_START_S {
         let mut before = model.hypothesis;
         (search.off)(&mut before);
         let end_s =
