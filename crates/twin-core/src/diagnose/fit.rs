@@ -1785,14 +1785,19 @@ fn set_step(f: &mut Finding, side: usize, size: f64, sd: f64, onset_s: f64) {
 /// deviations) and clears the bars at the log's end, where its size is
 /// the filter's estimate (lagging a step by the filter's memory) and its
 /// onset is read off the track over the whole log, until
-/// [`size_tracked_loss`] fits it as a step.
-fn find_loss_after_training(ctx: &Ctx<'_>, model: &mut Accepted, findings: &mut Vec<Finding>) {
+/// [`size_tracked_loss`] fits it as a step. Returns the named loss's onset
+/// (for [`settled_records`]), where one is named and has one.
+fn find_loss_after_training(
+    ctx: &Ctx<'_>,
+    model: &mut Accepted,
+    findings: &mut Vec<Finding>,
+) -> Option<f64> {
     let cause = Cause::ThrusterLoss;
     let Search::States(search) = &cause.spec().search else {
-        return;
+        return None;
     };
     if ctx.base != BaseModel::Kinetic || model.hypothesis.loss != Term::Off {
-        return;
+        return None;
     }
     let acc = &ctx.config.acceptance;
     let mut tracked = model.hypothesis;
@@ -1807,13 +1812,13 @@ fn find_loss_after_training(ctx: &Ctx<'_>, model: &mut Accepted, findings: &mut 
             || at_split.loss[side] < acc.min_z * at_split.loss_sigma[side]
     });
     if out.failed || !none_at_split {
-        return;
+        return None;
     }
     // The states at the log's end, the onsets from the whole track.
     let whole_log = ctx.over_whole_log();
     let at_end = whole_log.pass(&tracked, true);
     if at_end.failed {
-        return;
+        return None;
     }
     let fitted = state_fitted(ctx, cause, search, tracked, at_end.at_split);
     let gain = model.out.nll_test - out.nll_test;
@@ -1822,59 +1827,50 @@ fn find_loss_after_training(ctx: &Ctx<'_>, model: &mut Accepted, findings: &mut 
         after_m: &out.rmse(),
     };
     if missed_bar(&fitted, gain, forecasts, acc).is_some() {
-        return;
+        return None;
     }
-    findings.push(finding(&fitted, &out, gain, &model.out));
+    let mut found = finding(&fitted, &out, gain, &model.out);
+    let onset_s = size_tracked_loss(ctx, search, &tracked, &at_end.at_split, &mut found);
+    findings.push(found);
     model.hypothesis = tracked;
     model.out = out;
+    onset_s
 }
 
-/// A loss that starts late, reported as such. One the model tracks through
-/// the held-out part (it starts there) is reported from the whole log: its
-/// states at the log's end, and where it is a step, its size and onset
+/// The report of a loss that starts in the held-out part, `found`, which
+/// the model `tracked` tracks through it: from the whole log, its states at
+/// the log's end (`at_end`), and where it is a step, its size and onset
 /// fitted as one over the whole log ([`fit_loss_step`]); a report only,
 /// its gain stays the tracked losses' own, judged on the held-out part.
-fn size_tracked_loss(ctx: &Ctx<'_>, model: &Accepted, findings: &mut [Finding]) {
-    let cause = Cause::ThrusterLoss;
-    let Search::States(search) = &cause.spec().search else {
-        return;
-    };
-    let Some(k) = findings.iter().position(|f| f.cause == cause) else {
-        return;
-    };
-    if !model.hypothesis.loss_tracked {
-        if model.hypothesis.loss_from_s > 0.0 {
-            findings[k].evidence.insert(
-                0,
-                "it starts late: a step, its size and onset fitted as one on the training part"
-                    .to_string(),
-            );
-        }
-        return;
-    }
-    let whole_log = ctx.over_whole_log();
-    let at_end = whole_log.pass(&model.hypothesis, true);
-    if at_end.failed {
-        return;
-    }
-    let report = (search.report)(&at_end.at_split, &ctx.config.acceptance);
-    let found = &mut findings[k];
-    (found.parameters, found.side) = (report.parameters, report.side);
+/// Returns its onset, where it has one.
+fn size_tracked_loss(
+    ctx: &Ctx<'_>,
+    search: &StateSearch,
+    tracked: &Hypothesis,
+    at_end: &AtSplit,
+    found: &mut Finding,
+) -> Option<f64> {
     let mut how = "its size the estimate at the log's end".to_string();
-    // The tracked losses at the log's end, the larger naming the side (as
-    // the report does): a step where its track rose late.
-    let tracked = &at_end.at_split;
-    let side = larger_loss_side(tracked);
-    let (onset_s, losses) = (tracked.loss_onset_s[side], tracked.loss);
-    if onset_s >= LATE_START_S {
-        let mut before = model.hypothesis;
+    // The larger loss names the side (as the report does): a step where
+    // its track rose late.
+    let side = larger_loss_side(at_end);
+    let mut onset_s = Some(at_end.loss_onset_s[side]).filter(|t| t.is_finite());
+    if let Some(track_onset_s) = onset_s.filter(|t| *t >= LATE_START_S) {
+        let mut before = *tracked;
         (search.off)(&mut before);
         let end_s =
             ctx.prep.steps[ctx.prep.steps.len() - 1].fix.time_s - ctx.prep.steps[0].fix.time_s;
-        let ranges = step_ranges(losses[side], onset_s, end_s - 1.0);
-        let (size, sd, onset_s, _) =
-            fit_loss_step(&whole_log, &before, losses, side, onset_s, ranges);
-        set_step(found, side, size, sd, onset_s);
+        let ranges = step_ranges(at_end.loss[side], track_onset_s, end_s - 1.0);
+        let (size, sd, step_onset_s, _) = fit_loss_step(
+            &ctx.over_whole_log(),
+            &before,
+            at_end.loss,
+            side,
+            track_onset_s,
+            ranges,
+        );
+        set_step(found, side, size, sd, step_onset_s);
+        onset_s = Some(step_onset_s);
         how = "its size and onset fitted as a step over the whole log".to_string();
     }
     found.evidence.insert(
@@ -1884,6 +1880,21 @@ fn size_tracked_loss(ctx: &Ctx<'_>, model: &Accepted, findings: &mut [Finding]) 
             ctx.split_s()
         ),
     );
+    onset_s
+}
+
+/// Says so where a named loss is a step fitted on the training part.
+fn note_training_step(model: &Accepted, findings: &mut [Finding]) {
+    if model.hypothesis.loss_tracked || model.hypothesis.loss_from_s <= 0.0 {
+        return;
+    }
+    if let Some(f) = findings.iter_mut().find(|f| f.cause == Cause::ThrusterLoss) {
+        f.evidence.insert(
+            0,
+            "it starts late: a step, its size and onset fitted as one on the training part"
+                .to_string(),
+        );
+    }
 }
 
 /// Fewest held-out records a verdict is judged on when a tracked loss's
@@ -1899,16 +1910,10 @@ const MIN_SETTLED_RECORDS: usize = 150;
 /// leaves enough records).
 fn settled_records<'r>(
     ctx: &Ctx<'_>,
-    model: &Accepted,
-    findings: &[Finding],
+    tracked_onset_s: Option<f64>,
     records: &'r [InnovationRecord],
 ) -> &'r [InnovationRecord] {
-    let onset_s = findings
-        .iter()
-        .find(|f| f.cause == Cause::ThrusterLoss)
-        .and_then(|f| f.parameters.iter().find(|p| p.0 == "onset_s"))
-        .map(|p| p.1);
-    let Some(onset_s) = onset_s.filter(|_| model.hypothesis.loss_tracked) else {
+    let Some(onset_s) = tracked_onset_s else {
         return records;
     };
     let filter = &ctx.config.twin.kinetic.filter;
@@ -2002,18 +2007,23 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     }
     refine_dynamics_sizes(&ctx, &mut model, &mut findings, &mut rejected);
     name_shared_parts(&ctx, &mut model, &mut findings);
-    find_loss_after_training(&ctx, &mut model, &mut findings);
-    size_tracked_loss(&ctx, &model, &mut findings);
+    let tracked_onset_s = find_loss_after_training(&ctx, &mut model, &mut findings);
+    note_training_step(&model, &mut findings);
     judge_each_against_the_rest(&ctx, &model, &mut findings);
     // A cause rejected in one round, or tried alone and with a companion,
     // can be named in the end (in a finding's place, or as a companion):
     // the finding stands.
     rejected.retain(|r| findings.iter().all(|f| f.cause != r.cause));
-    let settled = summarise(settled_records(&ctx, &model, &findings, &model.out.records));
     let current_out = model.out;
     let extended = summarise(&current_out.records);
+    let settled = settled_records(&ctx, tracked_onset_s, &current_out.records);
+    let unexplained = if settled.len() == current_out.records.len() {
+        unexplained(&extended, acc)
+    } else {
+        unexplained(&summarise(settled), acc)
+    };
     Diagnosis {
-        unexplained: unexplained(&settled, acc),
+        unexplained,
         base,
         steps: n,
         training_steps: split,
