@@ -12,8 +12,9 @@
 
 use twin_core::twin::TwinConfig;
 use twin_tests::trust::{
-    MATRIX_OTHER_DRAWS, MATRIX_OWN_DRAWS, MATRIX_SEED, Matrix, matrix_draws,
-    other_simulator_unavailable, run_matrix, with_identified_profile, with_known_antenna,
+    Class, HORIZONS_S, MATRIX_OTHER_DRAWS, MATRIX_OWN_DRAWS, MATRIX_SEED, Matrix, matrix_draws,
+    other_simulator_unavailable, run_matrix, run_matrix_with, with_identified_profile,
+    with_known_antenna,
 };
 
 /// Two standard deviations cover 95 % of a normal error; the bar leaves
@@ -114,6 +115,35 @@ fn a_draw_sails_on_the_profile_identified_from_a_trial_of_its_vessel() {
         "identified: {:?}",
         config.kinetic.profile_sigma
     );
+}
+
+/// A profile identified from a trial lowers the velocities' process noise
+/// the filter allows to the water's alone (`KineticConfig::
+/// with_identified_profile`); the forecasts' bands must still hold the
+/// truth at their stated rate, for the identification fits the hull's
+/// surge and yaw damping and its mass, not its sway and cross-flow drag.
+/// One draw of every class on each simulator, each sailed on the profile
+/// identified from a healthy trial of its own vessel (`trust_matrix
+/// --identified --known-antenna`), against the default matrix's bar.
+#[test]
+fn forecasts_on_an_identified_profile_cover_the_truth_at_their_stated_rate() {
+    if let Some(why) = other_simulator_unavailable() {
+        panic!("the independent simulator cannot run: {why}");
+    }
+    let one_per_class = Class::ALL.len();
+    let draws = matrix_draws(one_per_class, one_per_class, MATRIX_SEED);
+    let m = run_matrix_with(&draws, 2, |draw| {
+        with_identified_profile(with_known_antenna(TwinConfig::default(), draw), draw)
+    })
+    .expect("the draws and their identification trials run");
+    let report = m.report();
+    for horizon_s in HORIZONS_S {
+        let c = m.band_coverage(horizon_s);
+        assert!(
+            c >= COVERAGE_BAR,
+            "forecast band coverage at {horizon_s} s on identified profiles: {c:.3}\n{report}"
+        );
+    }
 }
 
 /// Draws of other seeds of the matrix where a healthy propeller was

@@ -176,12 +176,13 @@ impl Default for TwinConfig {
 }
 
 impl TwinConfig {
-    /// The twin of a vessel whose profile is its own, identified from a
-    /// trial of it to `profile_sigma` (the relative standard deviations of
-    /// its surge damping, yaw damping, thrust coefficient and mass):
+    /// The twin of a vessel whose profile is its own, known to
+    /// `profile_sigma` (the relative standard deviations of its surge
+    /// damping, yaw damping, thrust coefficient and mass):
     /// [`KineticConfig::identified`]. With it the losses themselves, not
     /// only how the propellers compare, can be told. The default assumes
-    /// an unidentified profile.
+    /// an unidentified profile; a profile identified from a trial is
+    /// [`Self::with_identified_profile`].
     pub fn identified(profile_sigma: [f64; 4]) -> Self {
         Self {
             kinetic: KineticConfig::identified(profile_sigma),
@@ -1402,7 +1403,11 @@ impl VesselTwin {
             return Vec::new();
         };
         let model = self.kinetic.base.model();
-        let points = predict(model, k, &k.process_noise_density, t0, inputs);
+        let q = self
+            .config
+            .kinetic
+            .forecast_process_noise_density(&k.process_noise_density);
+        let points = predict(model, k, &q, t0, inputs);
         points
             .iter()
             .map(|p: &PredictedPoint<STATES>| {

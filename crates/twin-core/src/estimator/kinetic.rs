@@ -50,6 +50,14 @@ pub struct KineticConfig {
     /// How many times the harbour water's random forces the velocities'
     /// process noise allows (see [`Self::otter_with`]).
     pub unmodelled_force_factor: f64,
+    /// The same for a forecast's uncertainty
+    /// ([`Self::forecast_process_noise_density`]): what the profile does
+    /// not model over the forecast's horizon. It stays at
+    /// [`Self::UNMODELLED_FORCE_FACTOR`] when the profile is identified
+    /// ([`Self::with_identified_profile`]), which fits the hull's surge
+    /// and yaw damping and its mass but not its sway and cross-flow drag,
+    /// and those carry a 30-60 s forecast's error.
+    pub forecast_force_factor: f64,
     /// Propeller data older than this stop the extended twin, s.
     pub max_propeller_age_s: f64,
     /// A propeller's loss counts as excited while the data pin it down to
@@ -128,11 +136,15 @@ impl KineticConfig {
         Self::otter_with(Self::UNMODELLED_FORCE_FACTOR)
     }
 
-    /// The Otter whose profile was identified from a trial of this very
-    /// vessel, its errors known to `profile_sigma` (relative standard
-    /// deviations of surge damping, yaw damping, thrust coefficient and
-    /// mass): the velocities' process noise is the water's alone, and the
-    /// losses' common part is known as well as the profile is.
+    /// The Otter whose profile is the vessel's own, its errors known to
+    /// `profile_sigma` (relative standard deviations of surge damping, yaw
+    /// damping, thrust coefficient and mass): the velocities' process
+    /// noise, its forecasts' too, is the water's alone, and the losses'
+    /// common part is known as well as the profile is. The seed's trials
+    /// run it (their simulated vessel is the profile's Otter). A profile
+    /// identified from a trial of a vessel is not known to be its own in
+    /// what the identification does not fit:
+    /// [`Self::with_identified_profile`] keeps its forecasts' allowance.
     pub fn identified(profile_sigma: [f64; 4]) -> Self {
         let mut config = Self::otter_with(1.0);
         config.set_profile_sigma(profile_sigma);
@@ -160,7 +172,8 @@ impl KineticConfig {
     /// [`Self::otter`] with the velocities' process noise
     /// `unmodelled_force_factor` times the harbour water's (1: the water
     /// alone, for a search of what the model lacks, `twin diagnose`, where
-    /// the misfit must show in the residuals rather than in the states).
+    /// the misfit must show in the residuals rather than in the states),
+    /// its forecasts' too ([`Self::forecast_force_factor`]).
     pub fn otter_with(unmodelled_force_factor: f64) -> Self {
         let f = unmodelled_force_factor;
         let mut q = SMatrix::<f64, STATES, STATES>::from_diagonal(&SVector::<f64, STATES>::from([
@@ -212,6 +225,7 @@ impl KineticConfig {
             initial_heading_bias_sigma_rad: 10f64.to_radians(),
             profile_sigma,
             unmodelled_force_factor: f,
+            forecast_force_factor: f,
             max_propeller_age_s: 1.0,
             excitation_sigma: 0.1,
             relative_excitation_sigma: 0.07,
@@ -254,12 +268,34 @@ impl KineticConfig {
     /// This configuration for a profile identified from a trial of the
     /// vessel, its errors known to `profile_sigma`: the velocities' process
     /// noise of the water alone, and the profile errors' prior
-    /// ([`Self::identified`]).
+    /// ([`Self::identified`]). Its forecasts keep their
+    /// [`Self::forecast_force_factor`].
     pub fn with_identified_profile(mut self, profile_sigma: [f64; 4]) -> Self {
         self.unmodelled_force_factor = 1.0;
         self.set_velocity_noise();
         self.set_profile_sigma(profile_sigma);
         self
+    }
+
+    /// The process noise density a forecast of this twin propagates with,
+    /// from the filter's `filter_density` (its estimate's
+    /// `process_noise_density`): the same, the velocities' block scaled
+    /// from [`Self::unmodelled_force_factor`] to
+    /// [`Self::forecast_force_factor`].
+    pub fn forecast_process_noise_density(
+        &self,
+        filter_density: &SMatrix<f64, STATES, STATES>,
+    ) -> SMatrix<f64, STATES, STATES> {
+        let mut q = *filter_density;
+        let ratio = self.forecast_force_factor / self.unmodelled_force_factor;
+        if ratio.is_finite() && ratio > 0.0 {
+            for i in idx::U..=idx::R {
+                for j in idx::U..=idx::R {
+                    q[(i, j)] *= ratio;
+                }
+            }
+        }
+        q
     }
 
     /// The velocities' process noise for [`Self::params`] and
@@ -934,6 +970,36 @@ mod tests {
         }
     }
 
+    /// An identified profile's filter takes the water's random forces
+    /// alone; its forecasts propagate the unidentified profile's allowance
+    /// for what the profile does not model, and nothing else changes.
+    #[test]
+    fn an_identified_profiles_forecast_keeps_the_unmodelled_forces() {
+        let unidentified = KineticConfig::otter();
+        let identified = KineticConfig::otter().with_identified_profile([0.05; 4]);
+        let (q_filter, q_before) = (
+            identified.filter.process_noise_density,
+            unidentified.filter.process_noise_density,
+        );
+        assert!(q_filter[(idx::U, idx::U)] < q_before[(idx::U, idx::U)] / 4.0);
+        let q_forecast = identified.forecast_process_noise_density(&q_filter);
+        for i in 0..STATES {
+            for j in 0..STATES {
+                let expected = q_before[(i, j)];
+                assert!(
+                    (q_forecast[(i, j)] - expected).abs() <= 1e-12 * expected.abs(),
+                    "({i}, {j}): {} vs {expected}",
+                    q_forecast[(i, j)]
+                );
+            }
+        }
+        // On an unidentified profile the forecast's noise is the filter's.
+        assert_eq!(
+            unidentified.forecast_process_noise_density(&q_before),
+            q_before
+        );
+    }
+
     /// A vessel twice the Otter's mass matrix, alike in shape, feels forces
     /// 2^(2/3) times the Otter's (in yaw also times its length ratio) and
     /// so accelerations 2^(2/3) / 2 times as strong: variances times
@@ -969,8 +1035,23 @@ mod tests {
             KineticConfig::for_vessel(otter, 5.0),
             KineticConfig::otter()
         );
+        // An identified profile's filter is the one of a profile known to
+        // be the vessel's own; only its forecasts' allowance differs.
         let identified = KineticConfig::otter().with_identified_profile([0.01; 4]);
-        assert_eq!(identified, KineticConfig::identified([0.01; 4]));
+        let own = KineticConfig::identified([0.01; 4]);
+        assert_eq!(identified.filter, own.filter);
+        assert_eq!(
+            identified.forecast_force_factor,
+            KineticConfig::UNMODELLED_FORCE_FACTOR
+        );
+        assert_eq!(own.forecast_force_factor, 1.0);
+        assert_eq!(
+            KineticConfig {
+                forecast_force_factor: 1.0,
+                ..identified
+            },
+            own
+        );
         assert_eq!(
             KineticConfig::otter().for_search().filter,
             KineticConfig::otter_with(1.0).filter
