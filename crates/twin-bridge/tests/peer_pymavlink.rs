@@ -3,8 +3,9 @@
 //! (and a second vehicle on the same link) to a `.tlog` and sends the same
 //! frames over UDP to the bridge. What the bridge publishes is what the
 //! log reader makes of the `.tlog` file: the same fixes (the GNSS receiver's,
-//! at the vehicle's clock), the same thrusts and shaft speeds; the second
-//! vehicle's telemetry is refused and counted.
+//! at the vehicle's clock, with the yaw rate pymavlink wrote into
+//! `ATTITUDE`), the same thrusts and shaft speeds; the second vehicle's
+//! telemetry is refused and counted.
 
 mod common;
 
@@ -69,6 +70,16 @@ fn a_pymavlink_boat_over_udp_is_its_tlog() {
         })
         .collect();
     assert_eq!(expected_fixes.len(), 50, "one fix an epoch");
+    // The yaw rate of the fixes is the heading's rate of change from the
+    // gyro rates pymavlink wrote into ATTITUDE (roll 0.01, pitch -0.02,
+    // yaw rate 0.1 rad/s, as f32): 0.1 cos(0.01) / cos(-0.02).
+    let (roll, pitch, yaw_rate) = (f64::from(0.01f32), f64::from(-0.02f32), f64::from(0.1f32));
+    let heading_rate = yaw_rate * roll.cos() / pitch.cos();
+    // The first fix comes before the first ATTITUDE.
+    for fix in &expected_fixes[1..] {
+        let got = fix.yaw_rate_radps.expect("a yaw rate with every later fix");
+        assert!((got - heading_rate).abs() < 1e-9, "{got} vs {heading_rate}");
+    }
     assert!(expected_commands.len() >= 50);
 
     bridge.wait_until("every fix and command", |sink| {

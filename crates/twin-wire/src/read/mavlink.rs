@@ -25,7 +25,10 @@
 //!   `mavlink:S:ekf`): position marked as estimated (so the assembler takes
 //!   the receiver's fixes when there are any), course and speed from `vx`,
 //!   `vy`, heading from `hdg`. (0, 0) is "no position yet": empty.
-//! - `ATTITUDE` (`mavlink:S:ekf`): roll, pitch, yaw as an attitude.
+//! - `ATTITUDE` (`mavlink:S:ekf`): roll, pitch, yaw as an attitude, and
+//!   the heading's rate of change from the gyro's `pitchspeed` and
+//!   `yawspeed` at that roll and pitch as a rate of turn (the twin's yaw
+//!   rate measurement).
 //! - `VFR_HUD` (`mavlink:S:ekf`): its whole-degree heading, only while the
 //!   stream has given no `ATTITUDE` (which is finer).
 //! - `ESC_TELEMETRY_1_TO_4`, `_5_TO_8`, `_9_TO_12`: the shaft speed (rpm) of
@@ -66,6 +69,32 @@ use twin_core::sample::{RADPS_PER_RPM, Side};
 use super::{Clock, Counted, Emit, LineDecoder, Monotonic, ReadOptions, RejectReason};
 use crate::measurement::{FixMethod, MAX_SPEED_MPS, Measurement, Source, ThrustCommand};
 use dialect::MavMessage;
+
+/// The fastest rate of turn taken from `ATTITUDE`, rad/s: a full turn a
+/// second is beyond any hull; a gyro reading past it is a fault.
+pub const MAX_RATE_OF_TURN_RADPS: f64 = 2.0 * std::f64::consts::PI;
+
+/// The rate of change of the heading (the yaw of the ZYX Euler angles),
+/// rad/s, from the body's pitch and yaw rates (`pitchspeed`, `yawspeed`
+/// of `ATTITUDE`, rad/s) at `roll_rad` and `pitch_rad`:
+/// `(q sin(roll) + r cos(roll)) / cos(pitch)` (the kinematics of the ZYX
+/// Euler angles, Fossen 2021, chapter 2).
+/// On a level hull it is the yaw rate itself.
+fn heading_rate(
+    roll_rad: f64,
+    pitch_rad: f64,
+    pitch_rate_radps: f64,
+    yaw_rate_radps: f64,
+) -> Result<f64, RejectReason> {
+    let (sin_roll, cos_roll) = roll_rad.sin_cos();
+    let cos_pitch = pitch_rad.cos();
+    let rate = (pitch_rate_radps * sin_roll + yaw_rate_radps * cos_roll) / cos_pitch;
+    if rate.is_finite() && rate.abs() <= MAX_RATE_OF_TURN_RADPS && cos_pitch.abs() >= 0.1 {
+        Ok(rate)
+    } else {
+        Err(RejectReason::BadField { field: "yawspeed" })
+    }
+}
 
 /// Start byte of a MAVLink 1 frame.
 pub const MAGIC_V1: u8 = 0xFE;
@@ -718,12 +747,24 @@ impl MavlinkState {
                         Err(RejectReason::BadField { field })
                     }
                 };
+                let (roll, pitch) = (angle(m.roll, "roll")?, angle(m.pitch, "pitch")?);
                 records[0] = Some((
                     fused,
                     Measurement::Attitude {
                         yaw_rad: Some(wrap_pi(angle(m.yaw, "yaw")?)),
-                        pitch_rad: Some(angle(m.pitch, "pitch")?),
-                        roll_rad: Some(angle(m.roll, "roll")?),
+                        pitch_rad: Some(pitch),
+                        roll_rad: Some(roll),
+                    },
+                ));
+                records[1] = Some((
+                    fused,
+                    Measurement::RateOfTurn {
+                        radps: heading_rate(
+                            roll,
+                            pitch,
+                            f64::from(m.pitchspeed),
+                            f64::from(m.yawspeed),
+                        )?,
                     },
                 ));
                 when
@@ -967,6 +1008,8 @@ mod tests {
             yaw,
             pitch: 0.01,
             roll: -0.02,
+            pitchspeed: 0.01,
+            yawspeed: 0.05,
             ..ATTITUDE_DATA::default()
         })
     }
@@ -1065,7 +1108,20 @@ mod tests {
             panic!()
         };
         assert!((yaw_rad.unwrap() - (3.5 - std::f64::consts::TAU)).abs() < 1e-6);
+        // Its gyro rates as the heading's rate of change, at the same time:
+        // (0.01 sin(-0.02) + 0.05 cos(-0.02)) / cos(0.01).
+        assert_eq!(records[3].source, records[2].source);
+        assert_eq!(records[3].time_s, records[2].time_s);
+        let Measurement::RateOfTurn { radps } = records[3].measurement else {
+            panic!("{:?}", records[3])
+        };
+        let (roll, pitch) = (f64::from(-0.02f32), f64::from(0.01f32));
+        let expected =
+            (f64::from(0.01f32) * roll.sin() + f64::from(0.05f32) * roll.cos()) / pitch.cos();
+        assert!((radps - expected).abs() < 1e-12, "{radps} vs {expected}");
+        assert!((radps - 0.049_79).abs() < 1e-4, "{radps}");
         // SERVO_OUTPUT_RAW through the Otter's map, before any ESC rpm.
+        let records = &records[1..];
         let Measurement::Thrust(t) = records[3].measurement else {
             panic!("{:?}", records[3])
         };
@@ -1089,7 +1145,7 @@ mod tests {
             }
         );
         assert_eq!(records[5].time_s, records[3].time_s);
-        assert_eq!(records.len(), 6);
+        assert_eq!(records.len(), 6, "after the rate of turn");
         // The ground station's heartbeat is ignored, not refused.
         assert_eq!(stats.ignored, 1);
     }
@@ -1117,7 +1173,43 @@ mod tests {
         d.decode_line(&frame_v2(1, 1, 1, &system_time(5_100)), 2, &mut out);
         d.decode_line(&frame_v2(1, 1, 2, &attitude(5_200, 0.5)), 3, &mut out);
         assert!(!d.receiver_stamped());
-        assert!((out[1].as_ref().unwrap().time_s - (T0 - 100.0 + 5.2)).abs() < 1e-6);
+        // Each ATTITUDE gives an attitude and a rate of turn.
+        assert_eq!(out.len(), 4);
+        assert_eq!(out[1].as_ref().unwrap().time_s, T0 + 3600.0);
+        for record in &out[2..] {
+            assert!((record.as_ref().unwrap().time_s - (T0 - 100.0 + 5.2)).abs() < 1e-6);
+        }
+    }
+
+    /// A gyro rate no hull turns at, or a pitch at which the heading's
+    /// rate is not defined, refuses the message with its reason.
+    #[test]
+    fn a_wild_gyro_rate_is_refused() {
+        let wild = |yawspeed: f32, pitch: f32| {
+            MavMessage::ATTITUDE(ATTITUDE_DATA {
+                time_boot_ms: 5_000,
+                yaw: 0.5,
+                pitch,
+                yawspeed,
+                ..ATTITUDE_DATA::default()
+            })
+        };
+        let log = tlog(&[
+            (T0, 1, wild(7.0, 0.0)),
+            (T0 + 0.1, 1, wild(f32::NAN, 0.0)),
+            (T0 + 0.2, 1, wild(0.1, 1.5)),
+            (T0 + 0.3, 1, wild(-0.1, 0.0)),
+        ]);
+        let (items, stats) = read(&log);
+        assert_eq!(stats.rejected(RejectKind::BadField), 3, "{items:?}");
+        let good: Vec<Record> = items.into_iter().filter_map(Result::ok).collect();
+        assert_eq!(good.len(), 2);
+        assert_eq!(
+            good[1].measurement,
+            Measurement::RateOfTurn {
+                radps: -0.1f32 as f64
+            }
+        );
     }
 
     #[test]
