@@ -144,15 +144,16 @@ fn print_seeds(
     );
     println!();
     println!(
-        "| seed | draws | healthy propellers | false FAULTs | losses >= 0.15 | not declared in time | flapping | late onsets | losses ending nominal | healthy ending not_excited |"
+        "| seed | draws | healthy propellers | false FAULTs | losses >= 0.15 | not declared in time | flapping | late onsets | losses ending nominal | healthy ending not_excited | mid-trial losses >= 0.2 on a manoeuvring vessel | declared within 15 s |"
     );
-    println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
-    let mut total = [0usize; 9];
+    println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let mut total = [0usize; 11];
     let mut failed = Vec::new();
     for seed in seeds {
         let matrix = run_matrix_with(&matrix_draws(own, other, seed), threads, |d| {
             config_of(d, told)
         })?;
+        let (goal_in_time, goal_losses) = matrix.goal_detections();
         let row = [
             matrix.draws(),
             matrix.healthy_propellers(),
@@ -163,6 +164,8 @@ fn print_seeds(
             matrix.late_onsets(),
             matrix.losses_ending_nominal(),
             matrix.healthy_ending_not_excited(),
+            goal_losses,
+            goal_in_time,
         ];
         for (t, r) in total.iter_mut().zip(row) {
             *t += r;

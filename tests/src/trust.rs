@@ -67,6 +67,12 @@ pub const COVERAGE_FROM_S: f64 = 60.0;
 pub const BAND_EVERY_S: f64 = 30.0;
 /// The forecast horizons judged, s.
 pub const HORIZONS_S: [f64; 3] = [10.0, 30.0, 60.0];
+/// The detection goal a controller would like (not a bar of the matrix):
+/// a loss of at least this much that starts while the twin watches a
+/// manoeuvring vessel ...
+pub const GOAL_LOSS: f64 = 0.2;
+/// ... declared FAULT within this long of its onset, s.
+pub const GOAL_WITHIN_S: f64 = 15.0;
 
 /// Which simulator makes the log.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -1086,6 +1092,26 @@ impl Matrix {
         self.cells.values().flatten()
     }
 
+    /// The losses of at least [`GOAL_LOSS`] that start mid-trial on a
+    /// manoeuvring vessel (neither a straight run nor a steady turn), and
+    /// how many of them are declared FAULT within [`GOAL_WITHIN_S`] of
+    /// their onset: `(declared in time, losses)`.
+    pub fn goal_detections(&self) -> (usize, usize) {
+        self.sides()
+            .filter(|(d, i, _)| {
+                d.loss[*i] >= GOAL_LOSS
+                    && d.onset_s > 0.0
+                    && !d.class.straight()
+                    && !d.class.steady_turn()
+            })
+            .fold((0, 0), |(k, n), (_, _, x)| {
+                (
+                    k + usize::from(x.delay_s.is_some_and(|t| t <= GOAL_WITHIN_S)),
+                    n + 1,
+                )
+            })
+    }
+
     fn sides(&self) -> impl Iterator<Item = (&Draw, usize, &SideScore)> {
         self.all()
             .flat_map(|(d, s)| s.sides.iter().enumerate().map(move |(i, x)| (d, i, x)))
@@ -1316,8 +1342,15 @@ impl Matrix {
                 counts[0], counts[1], counts[2], counts[3]
             );
         }
-        let (nominal_under_mismatch, through_mismatch) = self.nominal_under_mismatch();
         let _ = writeln!(out);
+        self.write_summary(&mut out);
+        out
+    }
+
+    /// The report's closing lines: coverages, counts, the detection goal
+    /// and the profile errors' coverage.
+    fn write_summary(&self, out: &mut String) {
+        let (nominal_under_mismatch, through_mismatch) = self.nominal_under_mismatch();
         let _ = writeln!(
             out,
             "sigma coverage (|loss - truth| <= 2 sigma) {:.3}, of the relative loss {:.3}; forecast band coverage (2 sigma per axis) at {}; false FAULTs per hour of healthy operation {:.2}; false FAULT {}, missed {}, flapping {}, late onset {}; called nominal {:.0} s into a profile mismatch {} (of {} propellers through one)",
@@ -1337,12 +1370,17 @@ impl Matrix {
             nominal_under_mismatch,
             through_mismatch,
         );
+        let (in_time, goal_losses) = self.goal_detections();
+        let _ = writeln!(
+            out,
+            "losses of {:.0} % or more starting mid-trial on a manoeuvring vessel declared FAULT within {GOAL_WITHIN_S:.0} s of their onset (a goal, not a bar): {in_time} of {goal_losses}",
+            100.0 * GOAL_LOSS
+        );
         let [du, dr, dk] = self.profile_error_coverage();
         let _ = writeln!(
             out,
             "the estimator's profile errors (not published on twin/fault) within 2 sigma of the vessel's drawn factor - 1: surge damping {du:.3}, yaw damping {dr:.3}, thrust coefficient {dk:.3}"
         );
-        out
     }
 }
 
