@@ -68,18 +68,16 @@ use twin_core::sample::{RADPS_PER_RPM, Side};
 
 use super::{Clock, Counted, Emit, LineDecoder, Monotonic, ReadOptions, RejectReason};
 use crate::measurement::{FixMethod, MAX_SPEED_MPS, Measurement, Source, ThrustCommand};
+use crate::messages::MAX_ABS_YAW_RATE_RADPS;
 use dialect::MavMessage;
-
-/// The fastest rate of turn taken from `ATTITUDE`, rad/s: a full turn a
-/// second is beyond any hull; a gyro reading past it is a fault.
-pub const MAX_RATE_OF_TURN_RADPS: f64 = 2.0 * std::f64::consts::PI;
 
 /// The rate of change of the heading (the yaw of the ZYX Euler angles),
 /// rad/s, from the body's pitch and yaw rates (`pitchspeed`, `yawspeed`
 /// of `ATTITUDE`, rad/s) at `roll_rad` and `pitch_rad`:
 /// `(q sin(roll) + r cos(roll)) / cos(pitch)` (the kinematics of the ZYX
 /// Euler angles, Fossen 2021, chapter 2).
-/// On a level hull it is the yaw rate itself.
+/// On a level hull it is the yaw rate itself. A rate beyond the contract's
+/// [`MAX_ABS_YAW_RATE_RADPS`] is out of range.
 fn heading_rate(
     roll_rad: f64,
     pitch_rad: f64,
@@ -89,10 +87,12 @@ fn heading_rate(
     let (sin_roll, cos_roll) = roll_rad.sin_cos();
     let cos_pitch = pitch_rad.cos();
     let rate = (pitch_rate_radps * sin_roll + yaw_rate_radps * cos_roll) / cos_pitch;
-    if rate.is_finite() && rate.abs() <= MAX_RATE_OF_TURN_RADPS && cos_pitch.abs() >= 0.1 {
-        Ok(rate)
-    } else {
+    if !rate.is_finite() || cos_pitch.abs() < 0.1 {
         Err(RejectReason::BadField { field: "yawspeed" })
+    } else if rate.abs() > MAX_ABS_YAW_RATE_RADPS {
+        Err(RejectReason::OutOfRange { field: "yawspeed" })
+    } else {
+        Ok(rate)
     }
 }
 
@@ -1181,8 +1181,9 @@ mod tests {
         }
     }
 
-    /// A gyro rate no hull turns at, or a pitch at which the heading's
-    /// rate is not defined, refuses the message with its reason.
+    /// A gyro rate beyond the contract's, or one that is not a number or
+    /// at a pitch where the heading's rate is not defined, refuses the
+    /// message with its reason.
     #[test]
     fn a_wild_gyro_rate_is_refused() {
         let wild = |yawspeed: f32, pitch: f32| {
@@ -1195,13 +1196,14 @@ mod tests {
             })
         };
         let log = tlog(&[
-            (T0, 1, wild(7.0, 0.0)),
+            (T0, 1, wild(5.5, 0.0)),
             (T0 + 0.1, 1, wild(f32::NAN, 0.0)),
             (T0 + 0.2, 1, wild(0.1, 1.5)),
             (T0 + 0.3, 1, wild(-0.1, 0.0)),
         ]);
         let (items, stats) = read(&log);
-        assert_eq!(stats.rejected(RejectKind::BadField), 3, "{items:?}");
+        assert_eq!(stats.rejected(RejectKind::OutOfRange), 1, "{items:?}");
+        assert_eq!(stats.rejected(RejectKind::BadField), 2, "{items:?}");
         let good: Vec<Record> = items.into_iter().filter_map(Result::ok).collect();
         assert_eq!(good.len(), 2);
         assert_eq!(
