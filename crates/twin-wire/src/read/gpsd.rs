@@ -10,7 +10,15 @@
 //!   `altHAE` (height above the ellipsoid) is kept. `track` (true course,
 //!   degrees) and `speed` (m/s) give course and speed; `magtrack` is not
 //!   used.
-//! - `ATT` (attitude): `heading`, degrees from true north, gives a heading.
+//! - `ATT` (attitude): `heading`, degrees from true north, gives a heading;
+//!   `rot`, the rate of turn in degrees per minute (negative turning to
+//!   port, as NMEA 0183's `ROT` that gpsd passes on), gives a yaw rate,
+//!   refused beyond the contract's
+//!   [`MAX_ABS_YAW_RATE_RADPS`](crate::messages::MAX_ABS_YAW_RATE_RADPS).
+//!   The gyro's `gyro_z` is not read: gpsd's documentation (gpsd_json(5))
+//!   gives its unit, degrees per second, but not the direction of its axis.
+//!   `IMU` reports (the same fields on the sensor's own time scale) are
+//!   ignored.
 //! - `SKY`: its `hdop` is kept and given to the following positions of the
 //!   same device.
 //!
@@ -35,7 +43,7 @@ use serde::Deserialize;
 use super::clock::DayClock;
 use super::{Clock, Counted, Emit, LineDecoder, ReadOptions, RejectReason};
 use crate::measurement::{FixMethod, MAX_SPEED_MPS, Measurement, Source};
-use crate::messages::MessageError;
+use crate::messages::{MAX_ABS_YAW_RATE_RADPS, MessageError};
 use crate::time::parse_rfc3339;
 
 /// The most devices numbered; later ones share the last number.
@@ -65,6 +73,9 @@ struct Report {
     speed: Option<f64>,
     #[serde(default)]
     heading: Option<f64>,
+    /// Rate of turn, degrees per minute.
+    #[serde(default)]
+    rot: Option<f64>,
     #[serde(default)]
     hdop: Option<f64>,
 }
@@ -182,22 +193,7 @@ impl GpsdState {
             .map_err(|e| RejectReason::Message(MessageError::from(e)))?;
         match report.class.as_str() {
             "TPV" => self.tpv(&report, emit),
-            "ATT" => {
-                let device = self.device(report.device.as_deref());
-                let Some(heading) = degrees(report.heading, "heading")? else {
-                    emit.stats.empty += 1;
-                    return Ok(());
-                };
-                let time_s = self.time(&report, true)?;
-                emit.record(
-                    time_s,
-                    Source::Gpsd(device),
-                    Measurement::Heading {
-                        heading_rad: heading,
-                    },
-                );
-                Ok(())
-            }
+            "ATT" => self.att(&report, emit),
             "SKY" => {
                 let device = self.device(report.device.as_deref());
                 let hdop = report
@@ -214,6 +210,33 @@ impl GpsdState {
                 Ok(())
             }
         }
+    }
+
+    /// An attitude report: its heading and its rate of turn, each where
+    /// given; a field out of its range refuses the report.
+    fn att(&mut self, report: &Report, emit: &mut Emit<'_>) -> Result<(), RejectReason> {
+        let device = self.device(report.device.as_deref());
+        let heading = degrees(report.heading, "heading")?;
+        let yaw_rate = report
+            .rot
+            .map(|deg_per_min| {
+                let radps = deg_per_min.to_radians() / 60.0;
+                in_range(radps, "rot", radps.abs() <= MAX_ABS_YAW_RATE_RADPS)
+            })
+            .transpose()?;
+        if heading.is_none() && yaw_rate.is_none() {
+            emit.stats.empty += 1;
+            return Ok(());
+        }
+        let time_s = self.time(report, true)?;
+        let source = Source::Gpsd(device);
+        if let Some(heading_rad) = heading {
+            emit.record(time_s, source, Measurement::Heading { heading_rad });
+        }
+        if let Some(radps) = yaw_rate {
+            emit.record(time_s, source, Measurement::RateOfTurn { radps });
+        }
+        Ok(())
     }
 
     fn tpv(&mut self, report: &Report, emit: &mut Emit<'_>) -> Result<(), RejectReason> {
@@ -357,6 +380,56 @@ mod tests {
     }
 
     #[test]
+    fn att_rate_of_turn_is_a_yaw_rate() {
+        let (items, stats) = decode(&[
+            r#"{"class":"TPV","device":"/dev/ttyUSB0","mode":3,"time":"2026-08-03T04:27:20Z","lat":34.41,"lon":133.54}"#,
+            // A satellite compass's heading and rate of turn: 60 deg/min
+            // to port is -1 deg/s.
+            r#"{"class":"ATT","device":"/dev/ttyUSB1","heading":87.5,"rot":-60.0}"#,
+            r#"{"class":"ATT","device":"/dev/ttyUSB1","rot":30.0}"#,
+            r#"{"class":"ATT","device":"/dev/ttyUSB1","pitch":1.5,"roll":-2.0}"#,
+            r#"{"class":"IMU","device":"/dev/ttyUSB1","rot":30.0}"#,
+        ]);
+        assert_eq!(stats.empty, 1, "the ATT with neither heading nor rot");
+        assert_eq!(stats.ignored, 1, "the IMU report");
+        let measurements: Vec<_> = items
+            .iter()
+            .map(|i| {
+                let r = i.as_ref().unwrap();
+                (r.source, r.time_s, r.measurement)
+            })
+            .collect();
+        assert_eq!(measurements.len(), 4, "{measurements:?}");
+        let t = parse_rfc3339("2026-08-03T04:27:20Z").unwrap();
+        assert_eq!(
+            &measurements[1..],
+            &[
+                (
+                    Source::Gpsd(1),
+                    t,
+                    Measurement::Heading {
+                        heading_rad: 87.5f64.to_radians()
+                    }
+                ),
+                (
+                    Source::Gpsd(1),
+                    t,
+                    Measurement::RateOfTurn {
+                        radps: -(1f64.to_radians())
+                    }
+                ),
+                (
+                    Source::Gpsd(1),
+                    t,
+                    Measurement::RateOfTurn {
+                        radps: 0.5f64.to_radians()
+                    }
+                ),
+            ]
+        );
+    }
+
+    #[test]
     fn bad_reports_are_refused_with_reasons() {
         for (line, kind) in [
             (
@@ -380,6 +453,16 @@ mod tests {
                 RejectKind::BadTime,
             ),
             (r#"{"class":"TPV","mode":"3D"}"#, RejectKind::Message),
+            // 5 rad/s is about 17,189 deg/min.
+            (
+                r#"{"class":"ATT","time":"2026-08-03T04:27:21Z","rot":17200.0}"#,
+                RejectKind::OutOfRange,
+            ),
+            (
+                r#"{"class":"ATT","time":"2026-08-03T04:27:21Z","heading":87.0,"rot":-17200.0}"#,
+                RejectKind::OutOfRange,
+            ),
+            (r#"{"class":"ATT","rot":"fast"}"#, RejectKind::Message),
             (r#"{"class":"TPV""#, RejectKind::Message),
             ("$GPGGA,1", RejectKind::UnknownFormat),
         ] {
