@@ -4,7 +4,9 @@
 //! causes named with their parameters and uncertainty, the gain each brings
 //! on held-out data, and, where a log carries the instrument's own set and
 //! drift (NMEA 2000 PGN 130577), the current estimate beside it with their
-//! difference.
+//! difference; and, for each log with positions and a measured yaw rate,
+//! the same log diagnosed again with its yaw-rate records removed
+//! ([`yaw_rate_comparison`]): what the measured yaw rate buys.
 //!
 //! Files in no log format (README, licences) are skipped; a log without
 //! positions is diagnosed from its velocities (its model column says so);
@@ -37,6 +39,14 @@ pub enum DiagnoseRealError {
     /// A log could not be diagnosed.
     #[error(transparent)]
     Diagnose(#[from] DiagnoseError),
+    /// A log's copy without its yaw rates could not be written or read.
+    #[error("cannot copy {path} without its yaw rates: {source}")]
+    Copy {
+        /// The log.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
 }
 
 /// One log's outcome.
@@ -268,6 +278,132 @@ pub fn markdown(logs: &[(String, LogOutcome)]) -> String {
         let _ = writeln!(s, "|---|---|---|---:|---:|---:|---:|");
         for c in comparisons {
             let _ = writeln!(s, "{c}");
+        }
+    }
+    s
+}
+
+/// The lines of a log's text that carry no yaw rate: without the NMEA 2000
+/// rate of turn (PGN 127251) and Furuno gyro rates (PGN 130842) of a
+/// canboat text log, nor NMEA 0183 `ROT` sentences.
+pub fn without_yaw_rates(text: &str) -> String {
+    text.lines()
+        .filter(|line| {
+            let rate_of_turn_0183 = line.starts_with('$') && line.get(3..7) == Some("ROT,");
+            !(line.contains(",127251,") || line.contains(",130842,") || rate_of_turn_0183)
+        })
+        .map(|line| format!("{line}\n"))
+        .collect()
+}
+
+/// One log diagnosed with its yaw rates and without them.
+#[derive(Debug)]
+pub struct YawRateComparison {
+    /// The log's file name.
+    pub name: String,
+    /// As recorded.
+    pub with: Box<DiagnoseReport>,
+    /// Its yaw-rate records removed ([`without_yaw_rates`]).
+    pub without: Box<DiagnoseReport>,
+}
+
+/// Every log of `logs` (read from `dir`) that has positions and measures
+/// a yaw rate, diagnosed again without its yaw rates (a copy in a
+/// temporary directory, removed after).
+pub fn yaw_rate_comparison(
+    dir: &Path,
+    logs: &[(String, LogOutcome)],
+    config: &DiagnoseConfig,
+) -> Result<Vec<YawRateComparison>, DiagnoseRealError> {
+    let scratch = std::env::temp_dir().join(format!("twin-xtask-yaw-rate-{}", std::process::id()));
+    let copy_error = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| DiagnoseRealError::Copy { path, source }
+    };
+    std::fs::create_dir_all(&scratch).map_err(copy_error(&scratch))?;
+    let mut out = Vec::new();
+    for (name, outcome) in logs {
+        let LogOutcome::Diagnosed(with) = outcome else {
+            continue;
+        };
+        if !(with.measured.position && with.measured.yaw_rate) {
+            continue;
+        }
+        let source = dir.join(name);
+        let text = std::fs::read_to_string(&source).map_err(copy_error(&source))?;
+        let copy = scratch.join(name);
+        std::fs::write(&copy, without_yaw_rates(&text)).map_err(copy_error(&copy))?;
+        let without = diagnose_path(&copy, SourceChoice::Best, config, &VesselProfile::otter());
+        std::fs::remove_file(&copy).map_err(copy_error(&copy))?;
+        out.push(YawRateComparison {
+            name: name.clone(),
+            with: with.clone(),
+            without: Box::new(without?),
+        });
+    }
+    std::fs::remove_dir(&scratch).map_err(copy_error(&scratch))?;
+    Ok(out)
+}
+
+/// The position forecast RMSE at `horizon_s` on the held-out part of the
+/// model every finding extends, m (each finding's gain is against that
+/// model); NaN where nothing was found or there is no forecast at that
+/// horizon.
+pub fn extended_forecast_rmse_m(report: &DiagnoseReport, horizon_s: f64) -> f64 {
+    report
+        .findings
+        .first()
+        .and_then(|f| {
+            f.gain
+                .prediction_rmse_m
+                .iter()
+                .find(|h| h.horizon_s == horizon_s)
+        })
+        .map_or(f64::NAN, |h| h.after)
+}
+
+/// The comparison as a markdown table: per log, with and without its yaw
+/// rates, the causes named and the extended model's held-out forecast
+/// RMSE at 5, 15 and 30 s.
+pub fn yaw_rate_markdown(comparisons: &[YawRateComparison]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "| log | yaw rate | causes named | forecast RMSE 5 s | 15 s | 30 s |"
+    );
+    let _ = writeln!(s, "|---|---|---|---:|---:|---:|");
+    for c in comparisons {
+        for (label, r) in [("measured", &c.with), ("records removed", &c.without)] {
+            let causes: Vec<String> = r
+                .findings
+                .iter()
+                .map(|f| format!("`{}` {}", f.cause, parameters_text(f)))
+                .collect();
+            let rmse = [5.0, 15.0, 30.0].map(|h| {
+                let v = extended_forecast_rmse_m(r, h);
+                if v.is_finite() {
+                    format!("{v:.1} m")
+                } else {
+                    "-".to_string()
+                }
+            });
+            let _ = writeln!(
+                s,
+                "| {} | {label} | {} | {} | {} | {} |",
+                if label == "measured" {
+                    c.name.as_str()
+                } else {
+                    ""
+                },
+                if causes.is_empty() {
+                    "none".to_string()
+                } else {
+                    causes.join("; ")
+                },
+                rmse[0],
+                rmse[1],
+                rmse[2]
+            );
         }
     }
     s

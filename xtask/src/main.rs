@@ -130,9 +130,19 @@ fn main() -> anyhow::Result<()> {
         }
         Task::DiagnoseReal { dir } => {
             let dir = root().join(dir);
-            let logs = xtask::diagnose_real::diagnose_dir(&dir, &diagnose_config())
+            let config = diagnose_config();
+            let logs = xtask::diagnose_real::diagnose_dir(&dir, &config)
                 .with_context(|| format!("diagnosing the logs of {}", dir.display()))?;
             print!("{}", xtask::diagnose_real::markdown(&logs));
+            let yaw_rate = xtask::diagnose_real::yaw_rate_comparison(&dir, &logs, &config)
+                .with_context(|| {
+                    format!(
+                        "diagnosing the logs of {} without their yaw rates",
+                        dir.display()
+                    )
+                })?;
+            println!();
+            print!("{}", xtask::diagnose_real::yaw_rate_markdown(&yaw_rate));
         }
         Task::Docs { names, list } => docs(names, list)?,
         Task::Schemas => schemas()?,

@@ -10,7 +10,7 @@
 //! log             the path given
 //! base_model      "kinetic" (the Otter's twin, propeller data) | "water" (kinematic, any vessel)
 //! steps, training_steps, heldout_steps
-//! measured        {heading, speed_through_water, propellers, position}: what the log has;
+//! measured        {heading, speed_through_water, yaw_rate, propellers, position}: what the log has;
 //!                 position false: no position records, the steps are the course/speed
 //!                 instants and only the velocities are diagnosed
 //! nominal         residuals of the nominal model on the held-out part (below)
@@ -26,9 +26,9 @@
 //!                 the held-out residuals well outside what the filter expects, else null
 //! instrument      {speed_mps, toward_deg, samples} the log's own set and drift
 //!                 (NMEA 2000 PGN 130577), or null
-//! residuals       {steps, mean [6], bias_z [6], rms [6], lag1 [6], nis_per_dof,
-//!                  measured [6], signatures [{component, signature, correlation}]}
-//!                 components: north, east, sog, cog, heading, stw
+//! residuals       {steps, mean [7], bias_z [7], rms [7], lag1 [7], nis_per_dof,
+//!                  measured [7], signatures [{component, signature, correlation}]}
+//!                 components: north, east, sog, cog, heading, stw, yaw_rate
 //! ```
 //! Causes and parameter names: `current` (`speed_mps`, `toward_deg`, and the
 //! `north_mps`, `east_mps` components), `thruster_loss` (`side`, `loss`, and
@@ -261,6 +261,8 @@ pub struct MeasuredJson {
     pub heading: bool,
     /// Speed through water.
     pub speed_through_water: bool,
+    /// Yaw rate (a rate gyro, a rate of turn).
+    pub yaw_rate: bool,
     /// Propeller speeds.
     pub propellers: bool,
     /// Positions (else the velocities alone are diagnosed).
@@ -332,6 +334,7 @@ pub fn diagnose_loaded(
         measured: MeasuredJson {
             heading: prep.has_heading,
             speed_through_water: prep.has_stw,
+            yaw_rate: prep.has_yaw_rate,
             propellers: prep.has_propellers,
             position: prep.has_position,
         },
@@ -449,10 +452,11 @@ pub fn render_text(r: &DiagnoseReport) -> String {
     );
     let _ = writeln!(
         o,
-        "  measured     position {}, heading {}, speed through water {}, propellers {}",
+        "  measured     position {}, heading {}, speed through water {}, yaw rate {}, propellers {}",
         r.measured.position,
         r.measured.heading,
         r.measured.speed_through_water,
+        r.measured.yaw_rate,
         r.measured.propellers
     );
     let n = &r.nominal;

@@ -104,8 +104,9 @@ pub struct DiagnoseConfig {
     /// Process noise density of the kinematic base (no propeller data).
     pub water_process_noise: [f64; 7],
     /// Measurement noise standard deviations of the kinematic base:
-    /// `[position m, SOG m/s, COG rad, heading rad, STW m/s]`.
-    pub water_measurement_sigma: [f64; 5],
+    /// `[position m, SOG m/s, COG rad, heading rad, STW m/s, yaw rate
+    /// rad/s]` (the yaw rate's as the extended twin's rate gyro).
+    pub water_measurement_sigma: [f64; 6],
 }
 
 impl Default for DiagnoseConfig {
@@ -127,7 +128,7 @@ impl Default for DiagnoseConfig {
             // yaw rate wander (0.1 m/s^2 and 0.01 rad/s^2 over a second); the
             // current drifts slowly.
             water_process_noise: [1e-4, 1e-4, 1e-6, 1e-2, 1e-4, 1e-6, 1e-6],
-            water_measurement_sigma: [0.5, 0.1, 0.05, 1f64.to_radians(), 0.1],
+            water_measurement_sigma: [0.5, 0.1, 0.05, 1f64.to_radians(), 0.1, 0.0087],
         }
     }
 }

@@ -21,7 +21,9 @@ use crate::model::Model;
 use crate::models::otter_twin::{
     FAULTS, MEASUREMENTS, OtterTwin, STATES, ShaftSpeeds, fault, idx as kidx,
 };
-use crate::models::water_kinematic::{WaterKinematic, idx as widx};
+use crate::models::water_kinematic::{
+    MEASUREMENTS as WATER_MEASUREMENTS, WaterKinematic, idx as widx,
+};
 use crate::predict::predict_states;
 
 /// State-type estimates at the end of the training part.
@@ -226,29 +228,29 @@ impl PassBase<STATES, MEASUREMENTS, FAULTS> for Kinetic {
 
 struct Water(WaterBase);
 
-impl PassBase<7, 6, 0> for Water {
+impl PassBase<7, WATER_MEASUREMENTS, 0> for Water {
     type Model = WaterKinematic;
-    const SLOTS: [usize; 6] = [0, 1, 2, 3, 4, 5];
+    const SLOTS: [usize; WATER_MEASUREMENTS] = [0, 1, 2, 3, 4, 5, 6];
 
     fn model(&self) -> &WaterKinematic {
         &self.0.filter().model
     }
 
-    fn prior(&self, fix: &LocalFix) -> AekfState<7, 6, 0> {
+    fn prior(&self, fix: &LocalFix) -> AekfState<7, WATER_MEASUREMENTS, 0> {
         self.0.prior(fix)
     }
 
-    fn available(&self, fix: &LocalFix) -> [bool; 6] {
+    fn available(&self, fix: &LocalFix) -> [bool; WATER_MEASUREMENTS] {
         self.0.measurement(fix).available
     }
 
     fn step(
         &self,
-        state: &mut AekfState<7, 6, 0>,
+        state: &mut AekfState<7, WATER_MEASUREMENTS, 0>,
         _input: &(),
         fix: &LocalFix,
         dt_s: f64,
-    ) -> Result<StepReport<6, 0>, AekfError> {
+    ) -> Result<StepReport<WATER_MEASUREMENTS, 0>, AekfError> {
         self.0.step(state, fix, dt_s)
     }
 
@@ -261,7 +263,7 @@ impl PassBase<7, 6, 0> for Water {
         [s, c, x[widx::U], x[widx::R]]
     }
 
-    fn at_split(&self, st: &AekfState<7, 6, 0>) -> AtSplit {
+    fn at_split(&self, st: &AekfState<7, WATER_MEASUREMENTS, 0>) -> AtSplit {
         let (a, b) = (widx::CURRENT_NORTH, widx::CURRENT_EAST);
         AtSplit {
             current: [st.x[a], st.x[b]],

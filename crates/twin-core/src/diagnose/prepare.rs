@@ -63,6 +63,9 @@ pub struct Prepared {
     pub has_heading: bool,
     /// Whether the log has speed through water for most of its fixes.
     pub has_stw: bool,
+    /// Whether the log has a yaw rate (a rate gyro, a rate of turn) for
+    /// most of its fixes.
+    pub has_yaw_rate: bool,
     /// Fixes dropped: not finite, out of range, or not after the previous one.
     pub dropped: usize,
 }
@@ -173,6 +176,12 @@ pub fn prepare(events: &[DiagEvent]) -> Option<Prepared> {
         has_propellers: most(steps.iter().filter(|s| s.shafts_radps.is_some()).count()),
         has_heading: most(steps.iter().filter(|s| s.fix.heading_rad.is_some()).count()),
         has_stw: most(steps.iter().filter(|s| s.fix.stw_mps.is_some()).count()),
+        has_yaw_rate: most(
+            steps
+                .iter()
+                .filter(|s| s.fix.yaw_rate_radps.is_some())
+                .count(),
+        ),
         steps,
         dropped,
     })

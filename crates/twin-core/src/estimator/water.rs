@@ -8,7 +8,7 @@ use super::{CourseGate, LocalFix, Term};
 use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
 use crate::model::Measurement;
 use crate::models::effects::SensorEffects;
-use crate::models::water_kinematic::{WaterKinematic, idx};
+use crate::models::water_kinematic::{MEASUREMENTS, WaterKinematic, idx, meas};
 
 /// What the water base estimates and how it measures.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -24,14 +24,14 @@ pub struct WaterOptions {
     /// Process noise density of the 7 states (per second).
     pub process_noise: [f64; 7],
     /// Measurement noise standard deviations:
-    /// `[position m, SOG m/s, COG rad, heading rad, STW m/s]`.
-    pub measurement_sigma: [f64; 5],
+    /// `[position m, SOG m/s, COG rad, heading rad, STW m/s, yaw rate rad/s]`.
+    pub measurement_sigma: [f64; 6],
 }
 
 /// The water base.
 #[derive(Debug, Clone)]
 pub struct WaterBase {
-    filter: Aekf<WaterKinematic, 7, 6, 0>,
+    filter: Aekf<WaterKinematic, 7, MEASUREMENTS, 0>,
     current: Term<2>,
     gate: CourseGate,
 }
@@ -43,21 +43,22 @@ impl WaterBase {
     /// The base with `options`, masking the course below `gate`'s speed. A
     /// current that is not estimated has no process noise.
     pub fn new(options: &WaterOptions, gate: CourseGate) -> Result<Self, AekfError> {
-        let [sp, ssog, scog, shead, sstw] = options.measurement_sigma;
-        let r = SVector::<f64, 6>::from_column_slice(&[
+        let [sp, ssog, scog, shead, sstw, srate] = options.measurement_sigma;
+        let r = SVector::<f64, MEASUREMENTS>::from_column_slice(&[
             sp * sp,
             sp * sp,
             ssog * ssog,
             scog * scog,
             shead * shead,
             sstw * sstw,
+            srate * srate,
         ]);
         let mut q = SVector::<f64, 7>::from_column_slice(&options.process_noise);
         if options.current != Term::Free {
             q[idx::CURRENT_NORTH] = 0.0;
             q[idx::CURRENT_EAST] = 0.0;
         }
-        let config = AekfConfig::<7, 6, 0> {
+        let config = AekfConfig::<7, MEASUREMENTS, 0> {
             process_noise_density: SMatrix::from_diagonal(&q),
             measurement_noise: SMatrix::from_diagonal(&r),
             forgetting_time_constant_s: 60.0,
@@ -80,21 +81,29 @@ impl WaterBase {
     }
 
     /// The filter.
-    pub fn filter(&self) -> &Aekf<WaterKinematic, 7, 6, 0> {
+    pub fn filter(&self) -> &Aekf<WaterKinematic, 7, MEASUREMENTS, 0> {
         &self.filter
     }
 
-    /// `[north, east, sog, cog, heading, stw]`, each where measured, the
-    /// course only above the gate's speed.
-    pub fn measurement(&self, fix: &LocalFix) -> Measurement<6> {
-        self.gate.measurement(fix, fix.stw_mps)
+    /// `[north, east, sog, cog, heading, stw, yaw rate]`, each where
+    /// measured, the course only above the gate's speed.
+    pub fn measurement(&self, fix: &LocalFix) -> Measurement<MEASUREMENTS> {
+        let gnss = self.gate.measurement(fix, fix.stw_mps);
+        let mut values = SVector::<f64, MEASUREMENTS>::zeros();
+        values.fixed_rows_mut::<6>(0).copy_from(&gnss.values);
+        values[meas::YAW_RATE] = fix.yaw_rate_radps.unwrap_or(0.0);
+        let mut available = [false; MEASUREMENTS];
+        available[..6].copy_from_slice(&gnss.available);
+        available[meas::YAW_RATE] = fix.yaw_rate_radps.is_some();
+        Measurement { values, available }
     }
 
     /// The first estimate from a fix: position as measured; heading from the
     /// sensor (less its offset), else the course; speed through water from
     /// the log (less its scale), else the speed over ground (less its
-    /// scale); the current as its term says.
-    pub fn prior(&self, fix: &LocalFix) -> AekfState<7, 6, 0> {
+    /// scale); yaw rate from the gyro, else zero; the current as its term
+    /// says.
+    pub fn prior(&self, fix: &LocalFix) -> AekfState<7, MEASUREMENTS, 0> {
         let model = &self.filter.model;
         let r = &self.filter.config.measurement_noise;
         let mut x0 = SVector::<f64, 7>::zeros();
@@ -110,6 +119,7 @@ impl WaterBase {
             .map(|v| v / model.stw_scale)
             .or(fix.sog_mps.map(|s| s / model.effects.sog_scale))
             .unwrap_or(0.0);
+        x0[idx::R] = fix.yaw_rate_radps.unwrap_or(0.0);
         let current_variance = match self.current {
             Term::Free => CURRENT_PRIOR_VARIANCE,
             Term::Off => 1e-12,
@@ -128,7 +138,11 @@ impl WaterBase {
                 0.25
             },
             0.25,
-            0.01,
+            if fix.yaw_rate_radps.is_some() {
+                r[(meas::YAW_RATE, meas::YAW_RATE)]
+            } else {
+                0.01
+            },
             current_variance,
             current_variance,
         ]);
@@ -143,10 +157,10 @@ impl WaterBase {
     /// One step to `fix`, `dt_s` after the estimate.
     pub fn step(
         &self,
-        state: &mut AekfState<7, 6, 0>,
+        state: &mut AekfState<7, MEASUREMENTS, 0>,
         fix: &LocalFix,
         dt_s: f64,
-    ) -> Result<StepReport<6, 0>, AekfError> {
+    ) -> Result<StepReport<MEASUREMENTS, 0>, AekfError> {
         self.filter.step(state, &(), &self.measurement(fix), dt_s)
     }
 }
@@ -167,7 +181,7 @@ mod tests {
             sideslip_m: 0.0,
             current: Term::Free,
             process_noise: [1e-4, 1e-4, 1e-6, 1e-2, 1e-4, 1e-6, 1e-6],
-            measurement_sigma: [0.5, 0.1, 0.05, 1f64.to_radians(), 0.1],
+            measurement_sigma: [0.5, 0.1, 0.05, 1f64.to_radians(), 0.1, 0.0087],
         };
         let base = WaterBase::new(&options, CourseGate { min_sog_mps: 0.5 }).unwrap();
         let (u, current) = (2.0, [0.3, 0.0]);
@@ -191,7 +205,7 @@ mod tests {
         let first = fix_at(0.0);
         assert_eq!(
             base.measurement(&first).available,
-            [false, false, true, true, true, true]
+            [false, false, true, true, true, true, true]
         );
         let mut state = base.prior(&first);
         for k in 1..=4 * 3600 {

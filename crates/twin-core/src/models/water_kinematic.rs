@@ -9,8 +9,10 @@
 //! them), the current is constant up to a slow random walk. The model with
 //! the current held at zero (zero initial variance and zero process noise on
 //! it) is the nominal one. Measurement `[north_m, east_m, sog_mps, cog_rad,
-//! heading_rad, stw_mps]`, any of them missing, with the sensor effects of
-//! [`crate::models::effects`] and a scale on the speed through water.
+//! heading_rad, stw_mps, yaw_rate_radps]`, any of them missing, with the
+//! sensor effects of [`crate::models::effects`] and a scale on the speed
+//! through water; the yaw rate (a rate gyro or rate-of-turn sensor)
+//! measures the state's own.
 //!
 //! ```text
 //! north' = u cos(psi) - v sin(psi) + c_n,  east' = u sin(psi) + v cos(psi) + c_e,
@@ -57,7 +59,12 @@ pub mod meas {
     pub const HEADING: usize = 4;
     /// Speed through water, m/s.
     pub const STW: usize = 5;
+    /// Yaw rate from a rate gyro or rate-of-turn sensor, rad/s.
+    pub const YAW_RATE: usize = 6;
 }
+
+/// Number of measurement components.
+pub const MEASUREMENTS: usize = 7;
 
 /// The model. It has no faults (`P = 0`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -97,20 +104,21 @@ impl WaterKinematic {
         }
     }
 
-    fn measure(&self, x: &SVector<f64, 7>) -> SVector<f64, 6> {
+    fn measure(&self, x: &SVector<f64, 7>) -> SVector<f64, MEASUREMENTS> {
         let g = gnss_measurement(&self.kinematics(x), &self.effects);
-        SVector::<f64, 6>::from_column_slice(&[
+        SVector::<f64, MEASUREMENTS>::from_column_slice(&[
             g[0],
             g[1],
             g[2],
             g[3],
             g[4],
             self.stw_scale * x[idx::U],
+            x[idx::R],
         ])
     }
 }
 
-impl Model<7, 6, 0> for WaterKinematic {
+impl Model<7, MEASUREMENTS, 0> for WaterKinematic {
     type Input = ();
 
     fn transition(
@@ -150,9 +158,9 @@ impl Model<7, 6, 0> for WaterKinematic {
         }
     }
 
-    fn observe(&self, x: &SVector<f64, 7>) -> Observation<7, 6> {
+    fn observe(&self, x: &SVector<f64, 7>) -> Observation<7, MEASUREMENTS> {
         let predicted = self.measure(x);
-        let mut jacobian = SMatrix::<f64, 6, 7>::zeros();
+        let mut jacobian = SMatrix::<f64, MEASUREMENTS, 7>::zeros();
         // Forward differences, one evaluation per column (the Jacobian only
         // steers the gains).
         for j in 0..7 {
@@ -171,8 +179,8 @@ impl Model<7, 6, 0> for WaterKinematic {
         }
     }
 
-    fn measurement_angles(&self) -> [bool; 6] {
-        [false, false, false, true, true, false]
+    fn measurement_angles(&self) -> [bool; MEASUREMENTS] {
+        [false, false, false, true, true, false, false]
     }
 
     fn state_angles(&self) -> [bool; 7] {
@@ -223,5 +231,12 @@ mod tests {
         assert!((o.predicted[meas::SOG] - 0.5).abs() < 1e-12);
         assert!((o.predicted[meas::STW]).abs() < 1e-12);
         assert!((o.predicted[meas::NORTH] - 0.3).abs() < 1e-12);
+        // A rate gyro measures the yaw rate itself.
+        let o = m.observe(&x);
+        assert_eq!(o.predicted[meas::YAW_RATE], x[idx::R]);
+        for j in 0..7 {
+            let expected = if j == idx::R { 1.0 } else { 0.0 };
+            assert!((o.jacobian[(meas::YAW_RATE, j)] - expected).abs() < 1e-6);
+        }
     }
 }
