@@ -189,6 +189,7 @@ fn without_propeller_speeds_losses_are_null_and_the_seed_method_reports() {
             "{name}"
         );
         assert!(j["quality"]["kinetic"].is_null());
+        assert_eq!(j["assembled"]["fixes_with_yaw_rate"], 0, "{name}");
         assert!(j["quality"]["seed_method"]["steps"].as_u64().unwrap() > 500);
         let (ok, text, _) = twin(&["analyze", path.to_str().unwrap()]);
         assert!(ok);
@@ -243,6 +244,11 @@ fn a_fixed_source_is_honoured() {
     ]);
     assert_eq!(j["sources"]["position"], "n2k:52");
     assert_eq!(j["assembled"]["positions_other_sources"], 1755);
+    // The Precision-9 compass's rate of turn (20 Hz) rides on every fix
+    // but one that comes before the first rate.
+    let fixes = j["assembled"]["fixes"].as_u64().unwrap();
+    let with_rate = j["assembled"]["fixes_with_yaw_rate"].as_u64().unwrap();
+    assert!(fixes > 1000 && with_rate + 1 >= fixes, "{with_rate} of {fixes}");
 }
 
 #[test]

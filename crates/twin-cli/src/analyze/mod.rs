@@ -39,7 +39,8 @@
 //! first_rejections  [{stage, reason, detail}]: the first of each reason
 //! read              twin_wire::ReadStats (lines, blank, ignored, empty, time_only,
 //!                   without_checksum, undated, records {kind: n}, rejected {reason: n})
-//! assembled         {fixes, fixes_with_course, fixes_with_heading, propeller_pairs,
+//! assembled         {fixes, fixes_with_course, fixes_with_heading, fixes_with_yaw_rate,
+//!                   propeller_pairs,
 //!                   thrust_commands, positions_other_sources, positions_not_after_previous,
 //!                   positions_repeated, courses_other_sources, courses_unused,
 //!                   headings_other_sources, propeller_unpaired, out_of_order}

@@ -78,6 +78,8 @@ pub struct AssemblyCounts {
     pub fixes_with_course: u64,
     /// Fixes with a heading.
     pub fixes_with_heading: u64,
+    /// Fixes with a yaw rate (a rate gyro, a rate of turn).
+    pub fixes_with_yaw_rate: u64,
     /// Propeller pairs.
     pub propeller_pairs: u64,
     /// Thrust commands (the twin takes shaft speeds; these are not used).
@@ -106,6 +108,7 @@ impl From<&AssembleStats> for AssemblyCounts {
             fixes: s.fixes,
             fixes_with_course: s.fixes_with_course,
             fixes_with_heading: s.fixes_with_heading,
+            fixes_with_yaw_rate: s.fixes_with_yaw_rate,
             propeller_pairs: s.propeller_pairs,
             thrust_commands: s.thrusts,
             positions_other_sources: s.positions_other_sources,

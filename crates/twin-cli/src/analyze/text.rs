@@ -102,10 +102,11 @@ impl Analysis {
         }
         let _ = writeln!(
             w,
-            "  assembled    {} fixes ({} with course/speed, {} with heading), {} propeller samples{}",
+            "  assembled    {} fixes ({} with course/speed, {} with heading, {} with yaw rate), {} propeller samples{}",
             asm.fixes,
             asm.fixes_with_course,
             asm.fixes_with_heading,
+            asm.fixes_with_yaw_rate,
             asm.propeller_pairs,
             if dropped.is_empty() {
                 String::new()
