@@ -4,7 +4,7 @@
 //! this command's).
 //!
 //! ```text
-//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I [--every S]] [--onsets] [--list] [--known-antenna] [--identified]
+//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I [--every S]] [--onsets] [--list] [--known-antenna] [--identified] [--gyro all|none]
 //! ```
 //!
 //! `--trace I` prints what the twin published over draw `I`, every 10 s
@@ -20,7 +20,10 @@
 //! a profile that states it does (the twin does not estimate it);
 //! `--identified` sails each draw on the profile `twin identify` gives
 //! from a healthy trial of the draw's vessel first
-//! (`twin_tests::trust::with_identified_profile`).
+//! (`twin_tests::trust::with_identified_profile`);
+//! `--gyro all` gives every draw a rate gyro and `--gyro none` none, the
+//! draws otherwise the same (vessel, effects, noise): run both to see what
+//! a measured yaw rate buys.
 
 use twin_core::decision::ThrusterStatus;
 use twin_core::twin::TwinConfig;
@@ -36,6 +39,20 @@ struct Told {
     antenna: bool,
     /// A profile identified from a healthy trial of the vessel.
     identified: bool,
+    /// Every draw with a rate gyro (true) or none (false), in place of
+    /// the drawn one.
+    gyro: Option<bool>,
+}
+
+/// The matrix's draws of `seed`, with the gyro `told` sets.
+fn draws(own: usize, other: usize, seed: u64, told: Told) -> Vec<Draw> {
+    let mut all = matrix_draws(own, other, seed);
+    if let Some(gyro) = told.gyro {
+        for d in &mut all {
+            d.gyro = gyro;
+        }
+    }
+    all
 }
 
 /// The twin's configuration for `draw`: the default, with what `told`
@@ -80,6 +97,13 @@ fn main() -> Result<(), String> {
             "--onsets" => onsets = true,
             "--known-antenna" => told.antenna = true,
             "--identified" => told.identified = true,
+            "--gyro" => {
+                told.gyro = match args.next().as_deref() {
+                    Some("all") => Some(true),
+                    Some("none") => Some(false),
+                    other => return Err(format!("--gyro needs all or none, got {other:?}")),
+                }
+            }
             "--trace" => trace = Some(value("--trace")? as usize),
             "--every" => every_s = value("--every")? as f64,
             "--seeds" => {
@@ -100,7 +124,7 @@ fn main() -> Result<(), String> {
     if let Some((first, last)) = seeds {
         return print_seeds(own, other, first..=last, threads, failures, told);
     }
-    let all = matrix_draws(own, other, seed);
+    let all = draws(own, other, seed, told);
     if list {
         for d in &all {
             println!("{}", d.describe());
@@ -150,7 +174,7 @@ fn print_seeds(
     let mut total = [0usize; 11];
     let mut failed = Vec::new();
     for seed in seeds {
-        let matrix = run_matrix_with(&matrix_draws(own, other, seed), threads, |d| {
+        let matrix = run_matrix_with(&draws(own, other, seed, told), threads, |d| {
             config_of(d, told)
         })?;
         let (goal_in_time, goal_losses) = matrix.goal_detections();
@@ -331,7 +355,7 @@ fn print_onsets(
 ) -> Result<(), String> {
     let draws: Vec<(u64, Draw)> = seeds
         .flat_map(|seed| {
-            matrix_draws(own, other, seed)
+            draws(own, other, seed, told)
                 .into_iter()
                 .map(move |d| (seed, d))
         })
