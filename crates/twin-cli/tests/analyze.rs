@@ -248,7 +248,10 @@ fn a_fixed_source_is_honoured() {
     // but one that comes before the first rate.
     let fixes = j["assembled"]["fixes"].as_u64().unwrap();
     let with_rate = j["assembled"]["fixes_with_yaw_rate"].as_u64().unwrap();
-    assert!(fixes > 1000 && with_rate + 1 >= fixes, "{with_rate} of {fixes}");
+    assert!(
+        fixes > 1000 && with_rate + 1 >= fixes,
+        "{with_rate} of {fixes}"
+    );
 }
 
 #[test]
