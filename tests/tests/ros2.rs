@@ -5,7 +5,8 @@
 //! - the daemon with `[ros2]` enabled: a Zenoh client on rmw_zenoh's key
 //!   gets the fault as a `DiagnosticArray` whose values are the JSON
 //!   fault's, with the attachment and the liveliness tokens rmw_zenoh needs;
-//! - a trial fed as `NavSatFix` + velocity gives the JSON path's estimates;
+//! - a trial of a vessel with a rate gyro fed as `NavSatFix` + velocity +
+//!   `Imu` gives the JSON path's estimates;
 //! - truncated and garbage CDR is refused with a reason and counted.
 
 use std::time::Duration;
@@ -25,8 +26,8 @@ use twin_wire::ros2::map::{
     yaw_quaternion,
 };
 use twin_wire::ros2::msgs::{
-    DiagnosticArray, Header, NavSatFix, NavSatStatus, Odometry, Path, Point, QuaternionStamped,
-    RosMessage, Twist, TwistStamped,
+    DiagnosticArray, Header, Imu, NavSatFix, NavSatStatus, Odometry, Path, Point,
+    QuaternionStamped, RosMessage, Twist, TwistStamped,
 };
 use twin_wire::ros2::rmw::{Attachment, gid_of};
 use twind::settings::Settings;
@@ -55,6 +56,16 @@ fn trial() -> (Messages, VesselTwin) {
     let msgs = messages(&simulate("straight_new-broken", 0.3, 3));
     let twin = offline(&msgs);
     (msgs, twin)
+}
+
+/// The same trial with a rate gyro on the vessel, its yaw rate joined to
+/// the fixes as a logger joins it.
+fn trial_with_gyro() -> Messages {
+    let mut sc = twin_tests::wire::scenario("straight_new-broken");
+    sc.propellers.port.loss = 0.3;
+    sc.seed = 3;
+    sc.sensors.yaw_rate.enabled = true;
+    twin_tests::wire::messages_as_logged(&twin_sim::simulate(&sc).expect("simulation"))
 }
 
 /// One golden case: a message, its JSON form and the twin's CDR.
@@ -119,6 +130,31 @@ fn gnss_inputs() -> (NavSatFix, TwistStamped, QuaternionStamped) {
     (fix, vel, heading)
 }
 
+/// An IMU turning to starboard at 0.05 rad/s (-z in REP 103), with every
+/// field set.
+fn imu_input() -> Imu {
+    Imu {
+        header: Header {
+            stamp: stamp_of("2024-05-01T12:00:00.2Z"),
+            frame_id: "base_link".into(),
+        },
+        orientation: yaw_quaternion(enu_yaw(2.0)),
+        orientation_covariance: [1e-4, 0.0, 0.0, 0.0, 1e-4, 0.0, 0.0, 0.0, 4e-4],
+        angular_velocity: Point {
+            x: 0.002,
+            y: -0.001,
+            z: -0.05,
+        },
+        angular_velocity_covariance: [1e-6, 0.0, 0.0, 0.0, 1e-6, 0.0, 0.0, 0.0, 1e-6],
+        linear_acceleration: Point {
+            x: 0.12,
+            y: -0.03,
+            z: 9.81,
+        },
+        linear_acceleration_covariance: [0.01, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 0.01],
+    }
+}
+
 fn golden_cases() -> Vec<Case> {
     let (_, twin) = trial();
     let report = twin.state_report().unwrap();
@@ -143,6 +179,7 @@ fn golden_cases() -> Vec<Case> {
         case(&fix),
         case(&vel),
         case(&heading),
+        case(&imu_input()),
     ]
 }
 
@@ -204,16 +241,22 @@ fn truncated_and_garbage_cdr_is_refused() {
             );
         }
     }
-    let decoders: [fn(&[u8]) -> bool; 7] = [
+    let decoders: [fn(&[u8]) -> bool; 9] = [
         |b| Odometry::from_cdr(b).is_ok(),
         |b| NavSatFix::from_cdr(b).is_ok(),
         |b| DiagnosticArray::from_cdr(b).is_ok(),
         |b| Path::from_cdr(b).is_ok(),
         |b| TwistStamped::from_cdr(b).is_ok(),
         |b| QuaternionStamped::from_cdr(b).is_ok(),
+        |b| Imu::from_cdr(b).is_ok(),
         |b| {
             twin_wire::ros2::input::NavSatInput::new(1.0)
                 .push(twin_wire::ros2::input::GnssTopic::Fix, b)
+                .is_ok()
+        },
+        |b| {
+            twin_wire::ros2::input::NavSatInput::new(1.0)
+                .push(twin_wire::ros2::input::GnssTopic::Imu, b)
                 .is_ok()
         },
     ];
@@ -349,7 +392,9 @@ async fn a_ros2_subscriber_gets_the_json_fault_as_diagnostics() {
 }
 
 /// A JSON fix as a ROS 2 GNSS driver publishes it: velocity, then fix.
-fn as_ros(bytes: &[u8]) -> (Vec<u8>, Vec<u8>) {
+/// A contract fix as a ROS 2 GNSS driver and IMU publish it: its velocity,
+/// its yaw rate (where it has one) as an IMU's z rate, and its position.
+fn as_ros(bytes: &[u8]) -> Vec<(&'static str, Vec<u8>)> {
     let m: GnssMessage = serde_json::from_slice(bytes).unwrap();
     let header = Header {
         stamp: stamp_of(&m.time),
@@ -366,6 +411,15 @@ fn as_ros(bytes: &[u8]) -> (Vec<u8>, Vec<u8>) {
             angular: Point::default(),
         },
     };
+    let imu = m.yaw_rate_radps.map(|rate| Imu {
+        header: header.clone(),
+        angular_velocity: Point {
+            x: 0.0,
+            y: 0.0,
+            z: -rate,
+        },
+        ..imu_input()
+    });
     let fix = NavSatFix {
         header,
         latitude: m.lat_deg,
@@ -373,13 +427,30 @@ fn as_ros(bytes: &[u8]) -> (Vec<u8>, Vec<u8>) {
         altitude: f64::NAN,
         ..NavSatFix::default()
     };
-    (vel.to_cdr(), fix.to_cdr())
+    let mut out = vec![("vel", vel.to_cdr())];
+    out.extend(imu.map(|i| ("imu", i.to_cdr())));
+    out.push(("fix", fix.to_cdr()));
+    out
+}
+
+/// [`as_ros`]'s velocity and position payloads.
+fn vel_and_fix(bytes: &[u8]) -> (Vec<u8>, Vec<u8>) {
+    let parts = as_ros(bytes);
+    let of = |name: &str| {
+        parts
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, p)| p.clone())
+            .unwrap()
+    };
+    (of("vel"), of("fix"))
 }
 
 /// The trial, live (now), through the daemon; the last fault and state.
 async fn run_live(msgs: &Messages, over_ros2: bool) -> (FaultMessage, StateMessage, u64) {
     let settings = ros2_settings("");
     let vel_key = ros_key::<TwistStamped>(&settings, "otter1", "vel");
+    let imu_key = ros_key::<Imu>(&settings, "otter1", "imu");
     let fix_key = ros_key::<NavSatFix>(&settings, "otter1", "fix");
     let rig = rig(settings).await;
     let sub: Outputs = rig.collect("otter1").await;
@@ -395,15 +466,20 @@ async fn run_live(msgs: &Messages, over_ros2: bool) -> (FaultMessage, StateMessa
     let actuators = declare("asv/otter1/actuators".to_string()).await.unwrap();
     let gnss = declare("asv/otter1/gnss".to_string()).await.unwrap();
     let vel = declare(vel_key).await.unwrap();
+    let imu = declare(imu_key).await.unwrap();
     let fix = declare(fix_key).await.unwrap();
-    for p in [&actuators, &gnss, &vel, &fix] {
+    for p in [&actuators, &gnss, &vel, &imu, &fix] {
         wait_matching(p, Duration::from_secs(20)).await;
     }
     let mut sequence = 0;
     for (topic, bytes) in msgs {
         if *topic == "gnss" && over_ros2 {
-            let (v, f) = as_ros(bytes);
-            for (p, payload) in [(&vel, v), (&fix, f)] {
+            for (name, payload) in as_ros(bytes) {
+                let p = match name {
+                    "vel" => &vel,
+                    "imu" => &imu,
+                    _ => &fix,
+                };
                 sequence += 1;
                 let attachment = Attachment {
                     sequence_number: sequence,
@@ -435,13 +511,25 @@ async fn run_live(msgs: &Messages, over_ros2: bool) -> (FaultMessage, StateMessa
     )
 }
 
-/// Acceptance: the same trial fed as `NavSatFix` + `TwistStamped` over
-/// rmw_zenoh's keys gives the JSON path's estimates (the velocity's round
-/// trip through east/north costs float round-off only).
+/// Acceptance: the same trial (a vessel with a rate gyro) fed as
+/// `NavSatFix` + `TwistStamped` + `Imu` over rmw_zenoh's keys gives the
+/// JSON path's estimates (the velocity's round trip through east/north
+/// costs float round-off only).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_navsatfix_input_gives_the_json_paths_estimates() {
     let _serial = SERIAL.lock().await;
-    let (msgs, _) = trial();
+    let msgs = trial_with_gyro();
+    let with_yaw_rate = msgs
+        .iter()
+        .filter(|(t, b)| {
+            *t == "gnss"
+                && serde_json::from_slice::<GnssMessage>(b)
+                    .unwrap()
+                    .yaw_rate_radps
+                    .is_some()
+        })
+        .count();
+    assert!(with_yaw_rate > 100, "{with_yaw_rate} fixes with a yaw rate");
     let start = time_of(&msgs[0].1);
     let live: Messages = shifted(&msgs, now_s() - 200.0 - start)
         .into_iter()
@@ -541,7 +629,7 @@ async fn bad_ros2_input_is_refused_with_a_reason_and_counted() {
     let _serial = SERIAL.lock().await;
     let input = InputRig::new().await;
     let (fix, vel) = (&input.fix, &input.vel);
-    let (v, f) = as_ros(&twin_tests::wire::live_fix(now_s(), 0));
+    let (v, f) = vel_and_fix(&twin_tests::wire::live_fix(now_s(), 0));
     fix.put(f.clone()).await.unwrap(); // no velocity yet
     fix.put(f[..f.len() - 9].to_vec()).await.unwrap();
     fix.put(b"\x00\x01\x00\x00\xff\xff\xff\xff".to_vec())
@@ -574,7 +662,7 @@ async fn gaps_in_a_ros2_publishers_sequence_are_counted_as_missed() {
     // messages missed in all, and every fix that came has its velocity.
     let (fix_sequence, vel_sequence) = ([1, 2, 5, 6], [1, 3, 4, 5]);
     for (i, (f_seq, v_seq)) in fix_sequence.into_iter().zip(vel_sequence).enumerate() {
-        let (v, f) = as_ros(&twin_tests::wire::live_fix(start + 0.2 * i as f64, i));
+        let (v, f) = vel_and_fix(&twin_tests::wire::live_fix(start + 0.2 * i as f64, i));
         for (p, payload, sequence_number, gid) in
             [(&input.vel, v, v_seq, 1), (&input.fix, f, f_seq, 2)]
         {

@@ -12,8 +12,8 @@
 //! `.../fix`, `.../fault` and `.../prediction` (dropped with the vessel's
 //! task); each publication on the topic's data key with the attachment
 //! (sequence number, source time stamp, GID) that an rmw_zenoh
-//! subscription requires. Inputs: three subscribers on the data keys of
-//! `{namespace}/{own}/fix`, `.../vel` and `.../heading`; each completed fix
+//! subscription requires. Inputs: four subscribers on the data keys of
+//! `{namespace}/{own}/fix`, `.../vel`, `.../heading` and `.../imu`; each completed fix
 //! goes, as the contract's JSON fix, through the daemon's dispatcher like
 //! a fix on `{prefix}/{vessel}/gnss`. What cannot be read (bad CDR, no
 //! fix, no velocity near the fix, a value out of range) is refused with a
@@ -370,7 +370,7 @@ impl InputState {
 }
 
 impl Ros2Input {
-    /// Subscribes to `fix`, `vel` and `heading` of the vessels this daemon
+    /// Subscribes to `fix`, `vel`, `heading` and `imu` of the vessels this daemon
     /// owns, feeding `dispatcher`.
     pub(crate) async fn start(
         session: &Session,

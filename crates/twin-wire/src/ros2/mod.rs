@@ -8,8 +8,8 @@
 //! - [`rmw`]: rmw_zenoh's keys, liveliness tokens and attachment.
 //! - [`map`]: the twin's outputs as ROS 2 messages (frames, units,
 //!   unknowns; see its doc).
-//! - [`input`]: `sensor_msgs/NavSatFix` with velocity and heading as the
-//!   contract's GNSS fix.
+//! - [`input`]: `sensor_msgs/NavSatFix` with velocity, heading and an
+//!   IMU's yaw rate as the contract's GNSS fix.
 
 pub mod cdr;
 pub mod input;

@@ -263,6 +263,28 @@ pub struct TwistStamped {
     pub twist: Twist,
 }
 
+/// `sensor_msgs/msg/Imu`: an inertial unit's orientation, angular
+/// velocity and linear acceleration, in the frame of `header.frame_id`
+/// (REP 103 and 145: x forward, y left, z up; a covariance whose first
+/// element is -1 says the quantity is not measured).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Imu {
+    /// Time and frame.
+    pub header: Header,
+    /// Orientation.
+    pub orientation: Quaternion,
+    /// Its covariance, rad^2, row-major.
+    pub orientation_covariance: [f64; 9],
+    /// Angular velocity, rad/s.
+    pub angular_velocity: Vector3,
+    /// Its covariance, (rad/s)^2, row-major.
+    pub angular_velocity_covariance: [f64; 9],
+    /// Linear acceleration, m/s^2.
+    pub linear_acceleration: Vector3,
+    /// Its covariance, (m/s^2)^2, row-major.
+    pub linear_acceleration_covariance: [f64; 9],
+}
+
 /// `geometry_msgs/msg/QuaternionStamped`.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct QuaternionStamped {
@@ -546,6 +568,35 @@ impl CdrField for QuaternionStamped {
             quaternion: Quaternion::read(r)?,
         })
     }
+}
+
+impl CdrField for Imu {
+    fn write(&self, w: &mut CdrWriter) {
+        self.header.write(w);
+        self.orientation.write(w);
+        w.f64s(&self.orientation_covariance);
+        self.angular_velocity.write(w);
+        w.f64s(&self.angular_velocity_covariance);
+        self.linear_acceleration.write(w);
+        w.f64s(&self.linear_acceleration_covariance);
+    }
+    fn read(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
+        Ok(Self {
+            header: Header::read(r)?,
+            orientation: Quaternion::read(r)?,
+            orientation_covariance: r.f64s("orientation_covariance")?,
+            angular_velocity: Vector3::read(r)?,
+            angular_velocity_covariance: r.f64s("angular_velocity_covariance")?,
+            linear_acceleration: Vector3::read(r)?,
+            linear_acceleration_covariance: r.f64s("linear_acceleration_covariance")?,
+        })
+    }
+}
+
+impl RosMessage for Imu {
+    const TYPE_NAME: &'static str = "sensor_msgs/msg/Imu";
+    const TYPE_HASH: &'static str =
+        "RIHS01_7d9a00ff131080897a5ec7e26e315954b8eae3353c3f995c55faf71574000b5b";
 }
 
 impl RosMessage for NavSatFix {
