@@ -39,7 +39,11 @@
 //! - course/speed: the position source if it gave any, else the source
 //!   with the most, then the lowest;
 //! - heading: the source with the most headings (true headings, and
-//!   attitude yaw when `heading_from_attitude`), then the lowest.
+//!   attitude yaw when `heading_from_attitude`), then the lowest;
+//! - yaw rate: the source and kind (a gyro's yaw rate, a rate of turn)
+//!   with the most records, then the lowest source, then the gyro's: a
+//!   compass that sends a damped rate of turn beside its gyro's rate has
+//!   only one of them used.
 //!
 //! It then replays the held records in order. A kind with no source in the
 //! window locks onto the first source that sends it later.
@@ -167,7 +171,9 @@ pub struct AssembleStats {
     pub headings_other_sources: u64,
     /// Fixes that carry a yaw rate.
     pub fixes_with_yaw_rate: u64,
-    /// Yaw-rate records of other sources (not used).
+    /// Yaw-rate records of other sources, or of the chosen source's other
+    /// kind (a compass that sends both a damped rate of turn and its
+    /// gyro's rate), not used.
     pub yaw_rates_other_sources: u64,
     /// Propeller pairs emitted (paired here or passed through).
     pub propeller_pairs: u64,
@@ -185,13 +191,31 @@ struct Tally {
     best_rank: Option<i8>,
     courses: u64,
     headings: u64,
-    yaw_rates: u64,
+    /// Rates of turn and gyro yaw rates, counted apart.
+    yaw_rates: [u64; 2],
 }
 
 #[derive(Debug, Clone, Copy)]
 struct Fresh<T> {
     time_s: f64,
     value: T,
+}
+
+/// The two kinds of yaw-rate record, counted apart when a source's is
+/// chosen: a compass can send a damped rate of turn beside its gyro's
+/// rate, and a fix must not take one then the other.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum YawRateKind {
+    /// [`Measurement::RateOfTurn`].
+    RateOfTurn = 0,
+    /// [`Measurement::GyroRates`]' yaw rate.
+    Gyro = 1,
+}
+
+impl YawRateKind {
+    /// In the order that wins a tie: a gyro's own rate before a rate of
+    /// turn, which a sensor may have damped.
+    const ALL: [YawRateKind; 2] = [YawRateKind::Gyro, YawRateKind::RateOfTurn];
 }
 
 /// The streaming assembler. Feed records with [`Self::push`], call
@@ -205,7 +229,8 @@ pub struct FixAssembler {
     position_source: Option<Source>,
     course_source: Option<Source>,
     heading_source: Option<Source>,
-    yaw_rate_source: Option<Source>,
+    /// The source and kind of yaw rates used (see [`YawRateKind`]).
+    yaw_rate_stream: Option<(Source, YawRateKind)>,
     pending: Option<GnssFix>,
     /// The latest accepted position of the position source: time, lat, lon.
     last_position: Option<(f64, f64, f64)>,
@@ -234,7 +259,7 @@ impl FixAssembler {
             position_source,
             course_source: None,
             heading_source: None,
-            yaw_rate_source: None,
+            yaw_rate_stream: None,
             pending: None,
             last_position: None,
             course: None,
@@ -253,10 +278,11 @@ impl FixAssembler {
         &self.stats
     }
 
-    /// The chosen source of yaw rates (rate of turn, gyro yaw rate), once
-    /// known: the one that sent the most.
+    /// The chosen source of yaw rates, once known: the source and kind
+    /// (rate of turn, gyro yaw rate) that sent the most; only that kind of
+    /// the source is used.
     pub fn yaw_rate_source(&self) -> Option<Source> {
-        self.yaw_rate_source
+        self.yaw_rate_stream.map(|(source, _)| source)
     }
 
     /// The chosen sources (position, course/speed, heading), once known.
@@ -316,12 +342,12 @@ impl FixAssembler {
         }
     }
 
-    fn yaw_rate_of(m: &Measurement) -> Option<f64> {
+    fn yaw_rate_of(m: &Measurement) -> Option<(f64, YawRateKind)> {
         match *m {
-            Measurement::RateOfTurn { radps } => Some(radps),
+            Measurement::RateOfTurn { radps } => Some((radps, YawRateKind::RateOfTurn)),
             Measurement::GyroRates {
                 yaw_radps: Some(r), ..
-            } => Some(r),
+            } => Some((r, YawRateKind::Gyro)),
             _ => None,
         }
     }
@@ -348,8 +374,11 @@ impl FixAssembler {
                 }
                 Measurement::CourseSpeed { .. } => tally.courses += 1,
                 _ if heading => tally.headings += 1,
-                ref m if Self::yaw_rate_of(m).is_some() => tally.yaw_rates += 1,
-                _ => {}
+                ref m => {
+                    if let Some((_, kind)) = Self::yaw_rate_of(m) {
+                        tally.yaw_rates[kind as usize] += 1;
+                    }
+                }
             }
         }
         // Deterministic: sort by source so ties go to the lowest.
@@ -376,7 +405,22 @@ impl FixAssembler {
             best_by(&|t| (0, t.courses))
         };
         self.heading_source = best_by(&|t| (0, t.headings));
-        self.yaw_rate_source = best_by(&|t| (0, t.yaw_rates));
+        // The source and kind with the most yaw rates (ties: the lowest
+        // source, a gyro's rate before a rate of turn).
+        self.yaw_rate_stream = tallies
+            .iter()
+            .flat_map(|(s, t)| {
+                YawRateKind::ALL.map(|kind| ((*s, kind), t.yaw_rates[kind as usize]))
+            })
+            .filter(|(_, n)| *n > 0)
+            .fold(
+                None::<((Source, YawRateKind), u64)>,
+                |best, (stream, n)| match best {
+                    Some((_, most)) if most >= n => best,
+                    _ => Some((stream, n)),
+                },
+            )
+            .map(|(stream, _)| stream);
         self.deciding = false;
         let window = std::mem::take(&mut self.window);
         for record in window {
@@ -432,7 +476,7 @@ impl FixAssembler {
 
     /// Takes a source for a kind: the chosen one, or locks onto this one if
     /// none was found in the window.
-    fn accepts(chosen: &mut Option<Source>, source: Source) -> bool {
+    fn accepts<T: PartialEq + Copy>(chosen: &mut Option<T>, source: T) -> bool {
         *chosen.get_or_insert(source) == source
     }
 
@@ -497,8 +541,8 @@ impl FixAssembler {
                         time_s: record.time_s,
                         value: h,
                     });
-                } else if let Some(r) = Self::yaw_rate_of(m) {
-                    if !Self::accepts(&mut self.yaw_rate_source, record.source) {
+                } else if let Some((r, kind)) = Self::yaw_rate_of(m) {
+                    if !Self::accepts(&mut self.yaw_rate_stream, (record.source, kind)) {
                         self.stats.yaw_rates_other_sources += 1;
                         return;
                     }
@@ -738,6 +782,44 @@ mod tests {
         assert_eq!(f[5].cog_rad, Some(0.04));
         assert_eq!(a.stats().fixes_with_course, 20);
         assert!(f.windows(2).all(|w| w[1].time_s > w[0].time_s));
+    }
+
+    /// A satellite compass (source 52) sends a damped rate of turn and its
+    /// gyro's rate, each at 10 Hz; a rate sensor (source 27) sends its
+    /// rate of turn at 10 Hz too, a record fewer. Counted by source, the
+    /// compass would win and its fixes take one rate then the other; by
+    /// source and kind, each fix takes one stream's rate.
+    #[test]
+    fn one_kind_of_yaw_rate_of_one_source_rides_on_the_fixes() {
+        let mut records = Vec::new();
+        for i in 0..100 {
+            let t = i as f64 * 0.1;
+            records.push(pos(t, 25, None));
+            let rate = |source: u8, measurement: Measurement| {
+                rec(t + 0.01, Source::N2k(source), measurement)
+            };
+            records.push(rate(
+                52,
+                Measurement::GyroRates {
+                    roll_radps: None,
+                    pitch_radps: None,
+                    yaw_radps: Some(0.03),
+                },
+            ));
+            records.push(rate(52, Measurement::RateOfTurn { radps: 0.01 }));
+            if i > 0 {
+                records.push(rate(27, Measurement::RateOfTurn { radps: 0.02 }));
+            }
+        }
+        let (out, a) = run(records, AssemblerConfig::default());
+        let rates: Vec<Option<f64>> = fixes(&out).iter().map(|f| f.yaw_rate_radps).collect();
+        // The first 5 s decide: source 52's gyro rates (50) against its
+        // rates of turn (50) and source 27's (49); the tie goes to the
+        // gyro. Every fix after the first takes the 0.03 rad/s stream, none
+        // the compass's damped 0.01.
+        assert_eq!(a.yaw_rate_source(), Some(Source::N2k(52)));
+        assert!(rates[1..].iter().all(|r| *r == Some(0.03)), "{rates:?}");
+        assert_eq!(a.stats().yaw_rates_other_sources, 100 + 99);
     }
 
     #[test]
