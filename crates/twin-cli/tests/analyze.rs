@@ -190,6 +190,7 @@ fn without_propeller_speeds_losses_are_null_and_the_seed_method_reports() {
         );
         assert!(j["quality"]["kinetic"].is_null());
         assert_eq!(j["assembled"]["fixes_with_yaw_rate"], 0, "{name}");
+        assert!(j["sources"]["yaw_rate"].is_null(), "{name}");
         assert!(j["quality"]["seed_method"]["steps"].as_u64().unwrap() > 500);
         let (ok, text, _) = twin(&["analyze", path.to_str().unwrap()]);
         assert!(ok);
@@ -243,6 +244,9 @@ fn a_fixed_source_is_honoured() {
         "52",
     ]);
     assert_eq!(j["sources"]["position"], "n2k:52");
+    // The yaw rate's source is chosen on its own: the Precision-9's 20 Hz
+    // rate of turn, not the satellite compass's.
+    assert_eq!(j["sources"]["yaw_rate"], "n2k:27");
     assert_eq!(j["assembled"]["positions_other_sources"], 1755);
     // The Precision-9 compass's rate of turn (20 Hz) rides on every fix
     // but one that comes before the first rate.

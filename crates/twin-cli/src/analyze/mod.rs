@@ -31,7 +31,7 @@
 //! format            "nmea0183" | "n2k" | "json_lines" | "candump" | "ydraw" |
 //!                   "actisense_ascii" | "gpsd_json" | "mavlink_tlog"
 //! span              {start, end, duration_s} of the records read, or null
-//! sources           {position, course, heading}: "n2k:25", "nmea:GP", "json" or null
+//! sources           {position, course, heading, yaw_rate}: "n2k:25", "nmea:GP", "json" or null
 //! samples           inputs the twin used: GNSS fixes + propeller samples
 //! rejected          inputs refused: reader rejections + twin rejections
 //! samples_by_kind   {fixes, propellers}
@@ -677,6 +677,7 @@ fn sources(
     position: Option<Source>,
     course: Option<Source>,
     heading: Option<Source>,
+    yaw_rate: Option<Source>,
 ) -> Sources {
     let json = |present: bool, s: Option<Source>| {
         s.map(|s| s.to_string())
@@ -686,6 +687,7 @@ fn sources(
         position: json(assembled.fixes > 0, position),
         course: json(assembled.fixes_with_course > 0, course),
         heading: json(assembled.fixes_with_heading > 0, heading),
+        yaw_rate: json(assembled.fixes_with_yaw_rate > 0, yaw_rate),
     }
 }
 
@@ -761,7 +763,14 @@ pub fn analyze_reader<R: BufRead>(
         profile: options.profile.identity(),
         format: format_name(format),
         span,
-        sources: sources(format, &assembled, position, course, heading),
+        sources: sources(
+            format,
+            &assembled,
+            position,
+            course,
+            heading,
+            assembler.yaw_rate_source(),
+        ),
         samples: a.samples.fixes + a.samples.propellers,
         rejected: reader_rejected + twin_rejected,
         samples_by_kind: a.samples,

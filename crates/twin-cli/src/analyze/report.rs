@@ -36,6 +36,8 @@ pub struct Sources {
     pub course: Option<String>,
     /// Heading.
     pub heading: Option<String>,
+    /// Yaw rate (a rate gyro, a rate of turn).
+    pub yaw_rate: Option<String>,
 }
 
 /// Inputs the twin used, by kind.

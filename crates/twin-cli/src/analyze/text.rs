@@ -58,10 +58,11 @@ impl Analysis {
         let src = |o: &Option<String>| o.clone().unwrap_or_else(|| "-".to_string());
         let _ = writeln!(
             w,
-            "  sources      position {}, course/speed {}, heading {}",
+            "  sources      position {}, course/speed {}, heading {}, yaw rate {}",
             src(&self.sources.position),
             src(&self.sources.course),
-            src(&self.sources.heading)
+            src(&self.sources.heading),
+            src(&self.sources.yaw_rate)
         );
         let records: Vec<String> = self
             .read
