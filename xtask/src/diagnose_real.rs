@@ -373,7 +373,10 @@ pub fn yaw_rate_markdown(comparisons: &[YawRateComparison]) -> String {
     );
     let _ = writeln!(s, "|---|---|---|---:|---:|---:|");
     for c in comparisons {
-        for (label, r) in [("measured", &c.with), ("records removed", &c.without)] {
+        for (log, label, r) in [
+            (c.name.as_str(), "measured", &c.with),
+            ("", "records removed", &c.without),
+        ] {
             let causes: Vec<String> = r
                 .findings
                 .iter()
@@ -389,12 +392,7 @@ pub fn yaw_rate_markdown(comparisons: &[YawRateComparison]) -> String {
             });
             let _ = writeln!(
                 s,
-                "| {} | {label} | {} | {} | {} | {} |",
-                if label == "measured" {
-                    c.name.as_str()
-                } else {
-                    ""
-                },
+                "| {log} | {label} | {} | {} | {} | {} |",
                 if causes.is_empty() {
                     "none".to_string()
                 } else {

@@ -201,6 +201,19 @@ struct Fresh<T> {
     value: T,
 }
 
+/// Of `candidates` with a count (a score's second part) above zero, the
+/// first with the highest score `(rank, count)`: a later one wins only by
+/// beating it.
+fn first_best<K>(candidates: impl Iterator<Item = (K, (i8, u64))>) -> Option<K> {
+    candidates
+        .filter(|(_, score)| score.1 > 0)
+        .fold(None::<(K, (i8, u64))>, |best, (k, score)| match best {
+            Some((_, b)) if b >= score => best,
+            _ => Some((k, score)),
+        })
+        .map(|(k, _)| k)
+}
+
 /// The two kinds of yaw-rate record, counted apart when a source's is
 /// chosen: a compass can send a damped rate of turn beside its gyro's
 /// rate, and a fix must not take one then the other.
@@ -384,14 +397,7 @@ impl FixAssembler {
         // Deterministic: sort by source so ties go to the lowest.
         tallies.sort_by_key(|(s, _)| *s);
         let best_by = |key: &dyn Fn(&Tally) -> (i8, u64)| {
-            tallies
-                .iter()
-                .filter(|(_, t)| key(t).1 > 0)
-                .fold(None::<(Source, (i8, u64))>, |best, (s, t)| match best {
-                    Some((_, k)) if k >= key(t) => best,
-                    _ => Some((*s, key(t))),
-                })
-                .map(|(s, _)| s)
+            first_best(tallies.iter().map(|(s, t)| (*s, key(t))))
         };
         if self.position_source.is_none() {
             self.position_source = best_by(&|t| (t.best_rank.unwrap_or(i8::MIN), t.positions));
@@ -407,20 +413,9 @@ impl FixAssembler {
         self.heading_source = best_by(&|t| (0, t.headings));
         // The source and kind with the most yaw rates (ties: the lowest
         // source, a gyro's rate before a rate of turn).
-        self.yaw_rate_stream = tallies
-            .iter()
-            .flat_map(|(s, t)| {
-                YawRateKind::ALL.map(|kind| ((*s, kind), t.yaw_rates[kind as usize]))
-            })
-            .filter(|(_, n)| *n > 0)
-            .fold(
-                None::<((Source, YawRateKind), u64)>,
-                |best, (stream, n)| match best {
-                    Some((_, most)) if most >= n => best,
-                    _ => Some((stream, n)),
-                },
-            )
-            .map(|(stream, _)| stream);
+        self.yaw_rate_stream = first_best(tallies.iter().flat_map(|(s, t)| {
+            YawRateKind::ALL.map(|kind| ((*s, kind), (0, t.yaw_rates[kind as usize])))
+        }));
         self.deciding = false;
         let window = std::mem::take(&mut self.window);
         for record in window {
