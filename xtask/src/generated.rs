@@ -80,13 +80,31 @@ pub const BLOCKS: &[Block] = &[
     Block {
         name: "diagnose-perturbed",
         file: "docs/accuracy.md",
-        command: "cargo test -q -p twin-cli --test hidden_effects_perturbed -- --nocapture 2>/dev/null | grep -E '^(draw|diagnose-perturbed)'",
+        command: "cargo test -q -p twin-cli --test hidden_effects_perturbed hidden_effects_on_vessels -- --nocapture 2>/dev/null | grep -E '^(draw|diagnose-perturbed)'",
         shape: Shape::Fenced,
     },
     Block {
         name: "diagnose-perturbed-othersim",
         file: "docs/accuracy.md",
         command: "cargo test -q -p twin-cli --test hidden_effects_othersim hidden_effects_on_changed -- --nocapture 2>/dev/null | grep -E '^(draw|diagnose-perturbed-othersim)'",
+        shape: Shape::Fenced,
+    },
+    Block {
+        name: "diagnose-gyro",
+        file: "docs/accuracy.md",
+        command: "cargo test -q -p twin-cli --test hidden_effects_perturbed a_rate_gyros -- --nocapture 2>/dev/null | grep -E '^(draw|diagnose-gyro)'",
+        shape: Shape::Fenced,
+    },
+    Block {
+        name: "diagnose-gyro-othersim",
+        file: "docs/accuracy.md",
+        command: "cargo test -q -p twin-cli --test hidden_effects_othersim a_rate_gyros -- --nocapture 2>/dev/null | grep -E '^(draw|diagnose-gyro-othersim)'",
+        shape: Shape::Fenced,
+    },
+    Block {
+        name: "diagnose-without-propellers",
+        file: "docs/accuracy.md",
+        command: "cargo test -q -p twin-cli --test without_propellers -- --nocapture 2>/dev/null | grep -E '^draw'",
         shape: Shape::Fenced,
     },
     Block {

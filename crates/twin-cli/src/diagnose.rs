@@ -37,6 +37,7 @@
 //! reported over true), `gnss_latency` (`latency_s`: how much older the GNSS
 //! data are than their stamps), `lever_arm` (`x_m`, `y_m`: antenna forward,
 //! starboard), `stw_scale` (`scale`), `sideslip` (`lateral_mps_per_radps`),
+//! `yaw_rate_scale` (`scale`: the rate sensor's yaw rate over the true one),
 //! and the profile's own parameters on the kinetic base, each a `scale`
 //! over the profile's value: `surge_damping` (the hull's resistance:
 //! fouling), `yaw_damping`, `mass` (mass, inertia and added mass together).

@@ -24,7 +24,7 @@ mod perturbed;
 #[path = "common/twin_sim_draws.rs"]
 mod twin_sim_draws;
 
-use hidden::{Hidden, named};
+use hidden::{Hidden, draw_gyro, named};
 use perturbed::{Outcome, Perturbation, draw_perturbation, judge_on_vessel, report};
 use twin_sim::VesselSpec;
 use twin_sim_draws::{apply, base, diagnose_scenario, draw, on_two_threads};
@@ -43,10 +43,12 @@ fn perturb(spec: &mut VesselSpec, p: Perturbation) {
     }
 }
 
-/// Simulates, diagnoses and judges one draw.
-fn run_draw(i: usize, h: Hidden, p: Option<Perturbation>, seed: u64) -> Outcome {
+/// Simulates, diagnoses and judges one draw (the trial with a rate gyro
+/// of 0.2 deg/s noise at 10 Hz where `gyro`).
+fn run_draw(i: usize, h: Hidden, p: Option<Perturbation>, seed: u64, gyro: bool) -> Outcome {
     let mut sc = base();
     sc.seed = seed;
+    sc.sensors.yaw_rate.enabled = gyro;
     apply(&mut sc, h);
     if let Some(p) = p {
         let mut spec = VesselSpec::default();
@@ -69,7 +71,7 @@ fn hidden_effects_on_vessels_that_differ_from_their_profile() {
         })
         .collect();
     let results: Vec<Outcome> =
-        on_two_threads(&draws, |(i, h, p, seed)| run_draw(*i, *h, *p, *seed));
+        on_two_threads(&draws, |(i, h, p, seed)| run_draw(*i, *h, *p, *seed, false));
     let misses = report("diagnose-perturbed", &results);
     assert!(
         misses.control.is_empty(),
@@ -79,6 +81,34 @@ fn hidden_effects_on_vessels_that_differ_from_their_profile() {
     assert!(
         misses.changed.is_empty(),
         "wrong diagnoses of a changed vessel: {:?}",
+        misses.changed
+    );
+}
+
+/// A rate gyro whose scale is off is named by its scale, and a true one is
+/// not named, on vessels that differ from their profile: twelve trials with
+/// a rate gyro, every other one reading 1 ± U(0.06, 0.12) times the yaw
+/// rate, two in three on a changed vessel. The bars are the test's above.
+/// Below an error of about 0.06 the 20 % bar is within the twin's own bias
+/// on this simulator's vessel (a gyro reading true is fitted at 0.99:
+/// docs/known-issues.md, "Diagnose").
+#[test]
+fn a_rate_gyros_scale_is_named_and_a_true_gyro_is_not() {
+    let mut rng = StdRng::seed_from_u64(20261128);
+    let draws: Vec<(usize, Hidden, Option<Perturbation>, u64)> = (0..12)
+        .map(|i| {
+            let h = draw_gyro(&mut rng, i);
+            let p = (i % 3 != 0).then(|| draw_perturbation(&mut rng));
+            (i, h, p, rng.random_range(0..1_000_000))
+        })
+        .collect();
+    let results: Vec<Outcome> =
+        on_two_threads(&draws, |(i, h, p, seed)| run_draw(*i, *h, *p, *seed, true));
+    let misses = report("diagnose-gyro", &results);
+    assert!(
+        misses.control.is_empty() && misses.changed.is_empty(),
+        "wrong diagnoses with a rate gyro: {:?} on the profile's vessel, {:?} on a changed one",
+        misses.control,
         misses.changed
     );
 }

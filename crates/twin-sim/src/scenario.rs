@@ -606,6 +606,9 @@ pub struct YawRateSpec {
     pub sigma_deg_s: f64,
     /// Constant bias (reported minus true), deg/s.
     pub bias_deg_s: f64,
+    /// Scale factor (reported over true, before the bias): a gyro's scale
+    /// error.
+    pub scale: f64,
 }
 
 impl Default for YawRateSpec {
@@ -615,6 +618,7 @@ impl Default for YawRateSpec {
             rate_hz: 10.0,
             sigma_deg_s: 0.2,
             bias_deg_s: 0.0,
+            scale: 1.0,
         }
     }
 }
@@ -1326,6 +1330,7 @@ impl Scenario {
                 sigma_radps: non_negative("sensors.yaw_rate.sigma_deg_s", y.sigma_deg_s)?
                     .to_radians(),
                 bias_radps: finite("sensors.yaw_rate.bias_deg_s", y.bias_deg_s)?.to_radians(),
+                scale: positive("sensors.yaw_rate.scale", y.scale)?,
             })
         } else {
             None

@@ -278,9 +278,10 @@ pub(crate) struct YawRateSettings {
     pub period_s: f64,
     pub sigma_radps: f64,
     pub bias_radps: f64,
+    pub scale: f64,
 }
 
-/// A rate gyro with white noise and a constant bias.
+/// A rate gyro with a scale factor, white noise and a constant bias.
 #[derive(Debug, Clone)]
 pub(crate) struct YawRateSensor {
     settings: YawRateSettings,
@@ -299,7 +300,7 @@ impl YawRateSensor {
         let noise = self.settings.sigma_radps * gaussian(&mut self.rng);
         YawRateSample {
             time_s: start_unix_s + elapsed_s,
-            yaw_rate_radps: r_radps + self.settings.bias_radps + noise,
+            yaw_rate_radps: self.settings.scale * r_radps + self.settings.bias_radps + noise,
         }
     }
 }

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{calm, lag1_autocorrelation, local, mean, shipped, std_dev};
+use common::{calm, lag1_autocorrelation, local, mean, shipped, std_dev, truth_near};
 use twin_core::geodesy::wrap_pi;
 use twin_sim::{
     DisturbanceSpec, ManualCommand, OtterParams, Scenario, SensorEvent, SimRun, simulate,
@@ -92,12 +92,7 @@ fn zero_sigma_is_bit_identical_to_no_disturbance_section() {
 fn sensor_errors(run: &SimRun) -> Vec<f64> {
     let mut out = Vec::new();
     for e in &run.events {
-        let elapsed_s = e.time_s() - run.start_unix_s;
-        let Some(t) = run
-            .truth
-            .iter()
-            .find(|t| (t.elapsed_s - elapsed_s).abs() < 1e-6)
-        else {
+        let Some(t) = truth_near(run, e.time_s() - run.start_unix_s) else {
             continue;
         };
         match e {

@@ -4,7 +4,9 @@
 
 mod common;
 
-use common::{calm, lag1_autocorrelation, local, mean, shipped, silence, std_dev, truth_at};
+use common::{
+    calm, lag1_autocorrelation, local, mean, shipped, silence, std_dev, truth_at, truth_near,
+};
 use twin_core::geodesy::{angle_diff, wrap_pi};
 use twin_sim::{LeverArm, ManualCommand, Scenario, SensorEvent, SimRun, simulate};
 
@@ -210,6 +212,40 @@ fn lever_arm_moves_the_reported_position_and_velocity_with_the_hull() {
     }
     // In the turns the antenna's speed differs from the origin's.
     assert!(sog_gap > 0.02, "{sog_gap}");
+}
+
+/// A rate gyro reads `scale x true + bias`, exactly without noise.
+#[test]
+fn a_rate_gyro_reads_its_scale_and_bias() {
+    let mut s = Scenario::manual_mode(
+        "turning",
+        30.0,
+        vec![ManualCommand {
+            time_s: 2.0,
+            port_rpm: 900.0,
+            starboard_rpm: 300.0,
+        }],
+    );
+    silence(&mut s);
+    s.sensors.yaw_rate.enabled = true;
+    s.sensors.yaw_rate.sigma_deg_s = 0.0;
+    s.sensors.yaw_rate.scale = 0.95;
+    s.sensors.yaw_rate.bias_deg_s = 0.1;
+    let run = simulate(&s).unwrap();
+    let mut turning = 0;
+    for e in &run.events {
+        let SensorEvent::YawRate(y) = e else { continue };
+        // At the truth's instants.
+        let Some(t) = truth_near(&run, y.time_s - run.start_unix_s) else {
+            continue;
+        };
+        let want = 0.95 * t.r_radps + 0.1f64.to_radians();
+        assert!((y.yaw_rate_radps - want).abs() < 1e-12, "{y:?} {t:?}");
+        turning += usize::from(t.r_radps.abs() > 0.1);
+    }
+    assert!(turning > 50, "the hull turns: {turning} samples");
+    s.sensors.yaw_rate.scale = 0.0;
+    assert!(simulate(&s).is_err(), "a scale must be positive");
 }
 
 #[test]

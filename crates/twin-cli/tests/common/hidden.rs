@@ -2,19 +2,59 @@
 //! simulator, `hidden_effects_othersim.rs` on the independent one): the
 //! effect a draw hides, and the verdict on a diagnosis of it: exactly the
 //! right cause named, its size within 20 % (a current as a vector within
-//! 20 % of its speed), nothing named on a clean log.
+//! 20 % of its speed; a scale's error from one), nothing named on a clean
+//! log.
 
+use rand::Rng;
+use rand::rngs::StdRng;
 use twin_cli::diagnose::DiagnoseReport;
 
 /// The hidden effect of one draw, as the test knows it (the diagnosis does not).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Hidden {
     Nothing,
-    Current { speed_mps: f64, toward_deg: f64 },
-    HeadingOffset { offset_deg: f64 },
-    SogScale { scale: f64 },
-    Latency { latency_s: f64 },
-    Loss { port: bool, loss: f64 },
+    Current {
+        speed_mps: f64,
+        toward_deg: f64,
+    },
+    HeadingOffset {
+        offset_deg: f64,
+    },
+    SogScale {
+        scale: f64,
+    },
+    Latency {
+        latency_s: f64,
+    },
+    Loss {
+        port: bool,
+        loss: f64,
+    },
+    /// A rate gyro reading `scale` times the true yaw rate (drawn by the
+    /// gyro tests only; the test files that share this module without them
+    /// never build it).
+    #[allow(dead_code)]
+    YawRateScale {
+        scale: f64,
+    },
+}
+
+/// The `i`th draw of the rate-gyro tests: every other one a gyro reading
+/// 1 ± U(0.06, 0.12) times the yaw rate, either sign, the others a true
+/// gyro (nothing hidden).
+#[allow(dead_code)]
+pub fn draw_gyro(rng: &mut StdRng, i: usize) -> Hidden {
+    if !i.is_multiple_of(2) {
+        return Hidden::Nothing;
+    }
+    let size = rng.random_range(0.06..0.12);
+    Hidden::YawRateScale {
+        scale: if rng.random_bool(0.5) {
+            1.0 + size
+        } else {
+            1.0 - size
+        },
+    }
 }
 
 /// A finding's numeric parameter.
@@ -68,6 +108,9 @@ pub fn judge(h: Hidden, r: &DiagnoseReport) -> Result<(), String> {
                 && r.findings[0].parameters["side"] == if port { "port" } else { "starboard" }
                 && within(param(r, 0, "loss"), loss)
         }
+        Hidden::YawRateScale { scale } => {
+            causes[0] == "yaw_rate_scale" && within(param(r, 0, "scale") - 1.0, scale - 1.0)
+        }
     };
     if ok {
         Ok(())
@@ -77,6 +120,26 @@ pub fn judge(h: Hidden, r: &DiagnoseReport) -> Result<(), String> {
             causes, r.findings[0].parameters
         ))
     }
+}
+
+/// The verdict on a diagnosis of a log without propeller data hiding `h`,
+/// which the kinematic water base diagnoses: the simulated hull's own drift
+/// in its turns, if named, as an outward sideslip (negative); the rest by
+/// [`judge`] (used by the tests of logs without propeller data only).
+#[allow(dead_code)]
+pub fn judge_without_propellers(h: Hidden, r: &DiagnoseReport) -> Result<(), String> {
+    if r.base_model != "water" {
+        return Err(format!("diagnosed on the {} base", r.base_model));
+    }
+    if let Some(f) = r.findings.iter().find(|f| f.cause == "sideslip") {
+        let k = f.parameters["lateral_mps_per_radps"].as_f64().unwrap();
+        if k >= 0.0 {
+            return Err(format!("a sideslip of {k:.3} m/s per rad/s, inward"));
+        }
+    }
+    let mut others = r.clone();
+    others.findings.retain(|f| f.cause != "sideslip");
+    judge(h, &others)
 }
 
 /// The hidden effect in the table's words.
@@ -93,6 +156,7 @@ pub fn describe(h: Hidden) -> String {
         Hidden::Loss { port, loss } => {
             format!("{} loss {loss:.3}", if port { "port" } else { "starboard" })
         }
+        Hidden::YawRateScale { scale } => format!("yaw-rate scale {scale:.4}"),
     }
 }
 
@@ -104,7 +168,12 @@ pub fn named(r: &DiagnoseReport) -> String {
     r.findings
         .iter()
         .map(|f| {
-            let p = |n: &str| f.parameters[n].as_f64().unwrap_or(f64::NAN);
+            let p = |n: &str| {
+                f.parameters
+                    .get(n)
+                    .and_then(serde_json::Value::as_f64)
+                    .unwrap_or(f64::NAN)
+            };
             let what = match f.cause.as_str() {
                 "current" => format!(
                     "current {:.3} m/s toward {:.1} deg",
@@ -113,6 +182,7 @@ pub fn named(r: &DiagnoseReport) -> String {
                 ),
                 "heading_offset" => format!("heading offset {:+.2} deg", p("offset_deg")),
                 "sog_scale" => format!("SOG scale {:.4}", p("scale")),
+                "yaw_rate_scale" => format!("yaw-rate scale {:.4}", p("scale")),
                 "gnss_latency" => format!("GNSS latency {:.3} s", p("latency_s")),
                 "thruster_loss" => format!(
                     "{} loss {:.3}",
@@ -120,6 +190,7 @@ pub fn named(r: &DiagnoseReport) -> String {
                     p("loss")
                 ),
                 "lever_arm" => format!("lever arm x {:.2} m, y {:.2} m", p("x_m"), p("y_m")),
+                "sideslip" => format!("sideslip {:.3} m/s per rad/s", p("lateral_mps_per_radps")),
                 "surge_damping" | "yaw_damping" | "mass" => {
                     format!("{} x {:.3}", f.cause, p("scale"))
                 }

@@ -71,6 +71,10 @@ pub fn apply(sc: &mut Scenario, h: Hidden) {
         Hidden::Latency { latency_s } => sc.sensors.gnss.latency_s = -latency_s,
         Hidden::Loss { port: true, loss } => sc.propellers.port.loss = loss,
         Hidden::Loss { port: false, loss } => sc.propellers.starboard.loss = loss,
+        Hidden::YawRateScale { scale } => {
+            sc.sensors.yaw_rate.enabled = true;
+            sc.sensors.yaw_rate.scale = scale;
+        }
     }
 }
 

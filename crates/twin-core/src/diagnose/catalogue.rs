@@ -40,11 +40,14 @@ pub enum Cause {
     /// The vessel is heavier or lighter than the profile (a payload,
     /// ballast): mass, inertia and added mass rescaled together.
     Mass,
+    /// The rate sensor reads the yaw rate scaled (a gyro's scale factor, a
+    /// rate of turn its sensor damps).
+    YawRateScale,
 }
 
 impl Cause {
     /// Every cause, in the order they are tried.
-    pub const ALL: [Cause; 11] = [
+    pub const ALL: [Cause; 12] = [
         Cause::Current,
         Cause::ThrusterLoss,
         Cause::HeadingOffset,
@@ -56,6 +59,7 @@ impl Cause {
         Cause::SurgeDamping,
         Cause::YawDamping,
         Cause::Mass,
+        Cause::YawRateScale,
     ];
 
     /// The cause's declaration in the catalogue.
@@ -72,6 +76,7 @@ impl Cause {
             Cause::SurgeDamping => &SURGE_DAMPING,
             Cause::YawDamping => &YAW_DAMPING,
             Cause::Mass => &MASS,
+            Cause::YawRateScale => &YAW_RATE_SCALE,
         }
     }
 
@@ -104,6 +109,8 @@ pub(super) struct LogKind {
     pub has_position: bool,
     pub has_heading: bool,
     pub has_stw: bool,
+    /// Whether the log has a rate sensor's yaw rate.
+    pub has_yaw_rate: bool,
 }
 
 /// A cause's declaration.
@@ -117,6 +124,12 @@ pub(super) struct CauseSpec {
     /// together (a steady force it would only absorb, a wind or a turning
     /// current, makes them worse).
     pub must_improve_forecast: bool,
+    /// A sensor reading wrong (its offset, scale, clock or mounting), not
+    /// the vessel or the water moving otherwise than the model says: of
+    /// two causes that explain the data as well with as many parameters,
+    /// the one that is not is named. A hull drifts in every turn and water
+    /// moves; a sensor is wrong only when it is.
+    pub sensor_error: bool,
     /// How it is searched, and how its parameters are reported.
     pub search: Search,
 }
@@ -361,6 +374,7 @@ pub(super) const OUTSIDE_HULL: &str =
 static CURRENT: CauseSpec = CauseSpec {
     name: "current",
     must_improve_forecast: false,
+    sensor_error: false,
     applies: always,
     search: Search::States(StateSearch {
         free: free_current,
@@ -377,6 +391,7 @@ static CURRENT: CauseSpec = CauseSpec {
 static THRUSTER_LOSS: CauseSpec = CauseSpec {
     name: "thruster_loss",
     must_improve_forecast: false,
+    sensor_error: false,
     applies: |log| log.base == BaseModel::Kinetic,
     search: Search::States(StateSearch {
         free: free_losses,
@@ -410,6 +425,7 @@ static THRUSTER_LOSS: CauseSpec = CauseSpec {
 static HEADING_OFFSET: CauseSpec = CauseSpec {
     name: "heading_offset",
     must_improve_forecast: false,
+    sensor_error: true,
     applies: |log| log.has_heading,
     search: Search::Scalar(ScalarSearch {
         parameter: "offset_deg",
@@ -426,6 +442,7 @@ static HEADING_OFFSET: CauseSpec = CauseSpec {
 static SOG_SCALE: CauseSpec = CauseSpec {
     name: "sog_scale",
     must_improve_forecast: false,
+    sensor_error: true,
     applies: always,
     search: Search::Scalar(ScalarSearch {
         parameter: "scale",
@@ -442,6 +459,7 @@ static SOG_SCALE: CauseSpec = CauseSpec {
 static GNSS_LATENCY: CauseSpec = CauseSpec {
     name: "gnss_latency",
     must_improve_forecast: false,
+    sensor_error: true,
     // Seen in the fixes' positions against the vessel's motion.
     applies: |log| log.has_position,
     // A fix is stamped at or after the instant it describes, never before:
@@ -461,6 +479,7 @@ static GNSS_LATENCY: CauseSpec = CauseSpec {
 static LEVER_ARM: CauseSpec = CauseSpec {
     name: "lever_arm",
     must_improve_forecast: false,
+    sensor_error: true,
     // The water base needs a heading to turn a body offset into the fix's.
     // Seen in the fixes' positions as the hull turns.
     applies: |log| log.has_position && (log.base == BaseModel::Kinetic || log.has_heading),
@@ -477,6 +496,7 @@ static LEVER_ARM: CauseSpec = CauseSpec {
 static STW_SCALE: CauseSpec = CauseSpec {
     name: "stw_scale",
     must_improve_forecast: false,
+    sensor_error: true,
     applies: |log| log.base == BaseModel::Water && log.has_stw,
     search: Search::Scalar(ScalarSearch {
         parameter: "scale",
@@ -493,6 +513,7 @@ static STW_SCALE: CauseSpec = CauseSpec {
 static SIDESLIP: CauseSpec = CauseSpec {
     name: "sideslip",
     must_improve_forecast: false,
+    sensor_error: false,
     applies: |log| log.base == BaseModel::Water && log.has_heading,
     search: Search::Scalar(ScalarSearch {
         parameter: "lateral_mps_per_radps",
@@ -522,6 +543,7 @@ const fn profile_scale(name: &'static str, set: fn(&mut Hypothesis, f64)) -> Cau
         name,
         applies: kinetic_with_positions,
         must_improve_forecast: true,
+        sensor_error: false,
         search: Search::Scalar(ScalarSearch {
             parameter: "scale",
             bounds: (0.4, 2.5),
@@ -541,6 +563,28 @@ fn kinetic_with_positions(log: &LogKind) -> bool {
     log.base == BaseModel::Kinetic && log.has_position
 }
 
+static YAW_RATE_SCALE: CauseSpec = CauseSpec {
+    name: "yaw_rate_scale",
+    must_improve_forecast: false,
+    sensor_error: true,
+    // Told against how the heading (or, without a heading sensor, the
+    // course over ground) turns.
+    applies: |log| log.has_yaw_rate && (log.has_heading || log.has_position),
+    // A rate gyro's scale factor is within a few per cent of one, a rate of
+    // turn damped by its sensor reads low in a turn: beyond 20 % the rate is
+    // not of this vessel's yaw.
+    search: Search::Scalar(ScalarSearch {
+        parameter: "scale",
+        bounds: (0.8, 1.2),
+        grid: 6,
+        neutral: 1.0,
+        set: |h, v| h.effects.yaw_rate_scale = v,
+        shown: identity,
+        practical: |acc| acc.min_yaw_rate_scale_error,
+        below_means: None,
+    }),
+};
+
 static SURGE_DAMPING: CauseSpec = profile_scale("surge_damping", |h, v| h.profile_scales[0] = v);
 static YAW_DAMPING: CauseSpec = profile_scale("yaw_damping", |h, v| h.profile_scales[1] = v);
 static MASS: CauseSpec = profile_scale("mass", |h, v| h.profile_scales[3] = v);
@@ -555,12 +599,15 @@ mod tests {
             for has_position in [false, true] {
                 for has_heading in [false, true] {
                     for has_stw in [false, true] {
-                        v.push(LogKind {
-                            base,
-                            has_position,
-                            has_heading,
-                            has_stw,
-                        });
+                        for has_yaw_rate in [false, true] {
+                            v.push(LogKind {
+                                base,
+                                has_position,
+                                has_heading,
+                                has_stw,
+                                has_yaw_rate,
+                            });
+                        }
                     }
                 }
             }
@@ -617,6 +664,22 @@ mod tests {
     }
 
     #[test]
+    fn a_yaw_rate_scale_is_searched_near_one_and_scales_the_rate_sensor() {
+        let Search::Scalar(s) = &Cause::YawRateScale.spec().search else {
+            panic!("the yaw rate's scale is one scalar");
+        };
+        assert_eq!((s.bounds, s.neutral), ((0.8, 1.2), 1.0));
+        let mut h = Hypothesis::nominal();
+        (s.set)(&mut h, 0.96);
+        assert_eq!(h.effects.yaw_rate_scale, 0.96);
+        assert_eq!(
+            Cause::YawRateScale.name(),
+            "yaw_rate_scale",
+            "the name the contract lists"
+        );
+    }
+
+    #[test]
     fn applicability_follows_what_the_log_measured() {
         for kind in kinds() {
             let applies = |c: Cause| c.applies(&kind);
@@ -639,6 +702,10 @@ mod tests {
             assert_eq!(
                 applies(Cause::LeverArm),
                 kind.has_position && (kind.base == BaseModel::Kinetic || kind.has_heading)
+            );
+            assert_eq!(
+                applies(Cause::YawRateScale),
+                kind.has_yaw_rate && (kind.has_heading || kind.has_position)
             );
             // Judged on the held-out position forecast.
             for c in [Cause::SurgeDamping, Cause::YawDamping, Cause::Mass] {

@@ -44,6 +44,9 @@ pub struct Acceptance {
     pub min_sideslip_m: f64,
     /// Smallest error of a profile's parameter worth reporting (|scale - 1|).
     pub min_profile_scale_error: f64,
+    /// Smallest scale error of the rate sensor's yaw rate worth reporting
+    /// (|scale - 1|).
+    pub min_yaw_rate_scale_error: f64,
     /// Held-out NIS per degree of freedom above which, after the findings,
     /// the data are called unexplained.
     pub max_explained_nis_per_dof: f64,
@@ -58,12 +61,13 @@ impl Default for Acceptance {
     /// heading, 1 % of speed, 0.1 s of latency, 30 cm of antenna offset, 2 %
     /// of a log's speed (paddle wheels are rarely better calibrated), and a
     /// sideslip of 0.5 m/s per rad/s (a degree of drift in an ordinary turn),
-    /// 10 % of a profile's parameter. The data are unexplained when the
-    /// innovations after the findings are twice as large as the filter
-    /// expects (NIS per degree of freedom above 2) or a component's mean is
-    /// more than 10 standard errors from zero (the standard errors assume
-    /// white innovations; a filter under mismatch has correlated ones, so
-    /// 3 would flag every imperfect model).
+    /// 10 % of a profile's parameter, 2 % of a rate sensor's yaw rate. The
+    /// data are unexplained when the innovations after the findings are
+    /// twice as large as the filter expects (NIS per degree of freedom
+    /// above 2) or a component's mean is more than 10 standard errors from
+    /// zero (the standard errors assume white innovations; a filter under
+    /// mismatch has correlated ones, so 3 would flag every imperfect
+    /// model).
     fn default() -> Self {
         Self {
             min_gain_nll: 10.0,
@@ -77,6 +81,7 @@ impl Default for Acceptance {
             min_stw_scale_error: 0.02,
             min_sideslip_m: 0.5,
             min_profile_scale_error: 0.1,
+            min_yaw_rate_scale_error: 0.02,
             max_explained_nis_per_dof: 2.0,
             max_explained_bias_z: 10.0,
         }
@@ -1064,7 +1069,8 @@ struct Round {
 
 /// Takes, of the scored candidates that clear every bar, the one with the
 /// largest held-out gain, unless another explains the data as well (a gain
-/// within `min_gain_nll` of it) with fewer parameters: the simpler
+/// within `min_gain_nll` of it) with fewer parameters, or with as many and
+/// no claim that a sensor is wrong (`CauseSpec::sensor_error`): the simpler
 /// explanation is named. The others are rejected with the bar they missed.
 fn choose(mut scored: Vec<(Fitted, PassOut)>, current: &PassOut, acc: &Acceptance) -> Round {
     let current_nll_test = current.nll_test;
@@ -1088,10 +1094,16 @@ fn choose(mut scored: Vec<(Fitted, PassOut)>, current: &PassOut, acc: &Acceptanc
     let taken = clearing().next().map(|best| {
         clearing()
             .filter(|i| judged[*i].0 >= judged[best].0 - acc.min_gain_nll)
-            .min_by_key(|i| (scored[*i].0.parameter_count(), *i))
+            .min_by_key(|i| {
+                let f = &scored[*i].0;
+                (f.parameter_count(), f.cause.spec().sensor_error, *i)
+            })
             .unwrap_or(best)
     });
-    let taken_by = taken.map(|i| (scored[i].0.cause.name(), judged[i].0));
+    let taken_by = taken.map(|i| {
+        let f = &scored[i].0;
+        (f.cause.name(), judged[i].0, f.parameter_count())
+    });
     let mut round = Round {
         took: None,
         rejected: Vec::new(),
@@ -1106,9 +1118,14 @@ fn choose(mut scored: Vec<(Fitted, PassOut)>, current: &PassOut, acc: &Acceptanc
             .as_ref()
             .map(|c| format!("with {} for the part both share: ", c.cause.name()));
         let reason = reason.unwrap_or_else(|| match taken_by {
-            Some((name, taken_gain)) if gain > taken_gain => format!(
-                "{name} explains the data as well (a held-out gain within {}) with fewer parameters",
-                acc.min_gain_nll
+            Some((name, taken_gain, taken_count)) if gain > taken_gain => format!(
+                "{name} explains the data as well (a held-out gain within {}) {}",
+                acc.min_gain_nll,
+                if taken_count < f.parameter_count() {
+                    "with fewer parameters"
+                } else {
+                    "without a sensor being wrong"
+                }
             ),
             _ => "a larger gain was taken this round".to_string(),
         });
@@ -1525,10 +1542,12 @@ fn shared_part_line(
     }
 }
 
-/// The dynamics causes whose sizes are fitted again under the process
-/// noise the data ask for. Not the surge damping: it shares a ridge with
-/// the losses' common part, and a refit moves both along it.
-const REFINED_DYNAMICS: [Cause; 2] = [Cause::YawDamping, Cause::Mass];
+/// The causes whose sizes are fitted again under the process noise the
+/// data ask for: the dynamics that set how fast the velocities decay, and
+/// the rate sensor's scale, whose innovation covariance shrinks with it.
+/// Not the surge damping: it shares a ridge with the losses' common part,
+/// and a refit moves both along it.
+const REFINED_SIZES: [Cause; 3] = [Cause::YawDamping, Cause::Mass, Cause::YawRateScale];
 /// A refined size is searched within this factor of its selected size,
 /// either way.
 const REFINE_SPAN: f64 = 1.3;
@@ -1537,7 +1556,7 @@ const REFINE_ROUNDS: usize = 3;
 /// ... which stops once no size moved by more than this in a round.
 const REFINE_SETTLED: f64 = 0.005;
 
-/// A finding refitted by [`refine_dynamics_sizes`]: its cause's search,
+/// A finding refitted by [`refine_sizes_under_fitted_noise`]: its cause's search,
 /// the size it was selected with, and its refitted size and standard
 /// deviation.
 struct Refitted {
@@ -1548,26 +1567,24 @@ struct Refitted {
     sd: f64,
 }
 
-/// Fits the sizes of the yaw damping and mass findings again under the
-/// velocity process noise whose level, per axis, the training likelihood
-/// prefers with every finding in the model ([`super::noise_level`]); the
-/// model takes the refined sizes, and a finding whose refined size falls
-/// below its practical bar is dropped with the reason. The fixed search
-/// noise biases those sizes: a faster-contracting model shrinks the
-/// innovation covariances, which the likelihood rewards where the noise
-/// is larger than the data's.
-fn refine_dynamics_sizes(
+/// Fits the sizes of the yaw damping, mass and yaw-rate scale findings
+/// again under the velocity process noise whose level, per axis, the
+/// training likelihood prefers with every finding in the model
+/// ([`super::noise_level`]); the model takes the refined sizes, and a
+/// finding whose refined size falls below its practical bar is dropped with
+/// the reason. The fixed search noise biases those sizes: a
+/// faster-contracting model, or a rate sensor read as measuring less of the
+/// yaw rate, shrinks the innovation covariances, which the likelihood
+/// rewards where the noise is larger than the data's.
+fn refine_sizes_under_fitted_noise(
     ctx: &Ctx<'_>,
     model: &mut Accepted,
     findings: &mut Vec<Finding>,
     rejected: &mut Vec<Rejected>,
 ) {
-    if ctx.base != BaseModel::Kinetic {
-        return;
-    }
     let mut refitted: Vec<Refitted> = findings
         .iter()
-        .filter(|f| REFINED_DYNAMICS.contains(&f.cause))
+        .filter(|f| REFINED_SIZES.contains(&f.cause))
         .filter_map(|f| {
             let Search::Scalar(search) = &f.cause.spec().search else {
                 return None;
@@ -1597,12 +1614,13 @@ fn refine_dynamics_sizes(
         let at_sizes = hyp;
         levels = noise_level::fitted_velocity_noise_levels(
             ctx.config,
+            ctx.base,
             levels,
             round > 0,
             &|c| training_nll(c, &at_sizes),
             ctx.config.threads,
         );
-        let at_levels = noise_level::with_velocity_noise_levels(ctx.config, levels);
+        let at_levels = noise_level::with_velocity_noise_levels(ctx.config, ctx.base, levels);
         let mut moved: f64 = 0.0;
         for r in &mut refitted {
             let nll = |v: f64| {
@@ -1633,7 +1651,7 @@ fn refine_dynamics_sizes(
     model.out = out;
     take_refined_sizes(
         refitted,
-        ctx.config.acceptance.min_profile_scale_error,
+        &ctx.config.acceptance,
         &mut model.hypothesis,
         findings,
         rejected,
@@ -1647,16 +1665,18 @@ fn refine_dynamics_sizes(
 }
 
 /// The refined sizes put in their findings (value and standard deviation);
-/// a finding whose refined size is within `practical` of 1 is dropped from
-/// the findings and from `hypothesis`, with the reason.
+/// a finding whose refined size is within its cause's practical size
+/// (`acc`) of 1 is dropped from the findings and from `hypothesis`, with
+/// the reason.
 fn take_refined_sizes(
     refitted: Vec<Refitted>,
-    practical: f64,
+    acc: &Acceptance,
     hypothesis: &mut Hypothesis,
     findings: &mut Vec<Finding>,
     rejected: &mut Vec<Rejected>,
 ) {
     for r in refitted {
+        let practical = (r.search.practical)(acc);
         let Some(k) = findings.iter().position(|f| f.cause == r.cause) else {
             continue;
         };
@@ -1953,6 +1973,7 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
         has_position: prep.has_position,
         has_heading: prep.has_heading,
         has_stw: prep.has_stw,
+        has_yaw_rate: prep.has_yaw_rate,
     };
     let acc = &config.acceptance;
     let mut accepted = Hypothesis::nominal();
@@ -2006,7 +2027,7 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     if refit_jointly(&ctx, &applicable, &mut model, &mut findings, &mut rejected) {
         drop_redundant(&ctx, &mut model, &mut findings, &mut rejected);
     }
-    refine_dynamics_sizes(&ctx, &mut model, &mut findings, &mut rejected);
+    refine_sizes_under_fitted_noise(&ctx, &mut model, &mut findings, &mut rejected);
     name_shared_parts(&ctx, &mut model, &mut findings);
     let tracked_onset_s = find_loss_after_training(&ctx, &mut model, &mut findings);
     note_training_step(&model, &mut findings);
@@ -2111,21 +2132,32 @@ mod tests {
         };
         let mut hypothesis = Hypothesis::nominal();
         hypothesis.profile_scales = [1.0, 1.28, 1.0, 1.12];
-        let mut findings = vec![finding(Cause::YawDamping, 1.25), finding(Cause::Mass, 1.12)];
+        hypothesis.effects.yaw_rate_scale = 0.96;
+        let mut findings = vec![
+            finding(Cause::YawDamping, 1.25),
+            finding(Cause::Mass, 1.12),
+            finding(Cause::YawRateScale, 0.95),
+        ];
         let mut rejected = Vec::new();
+        // Each against its own practical size: 0.1 of a profile's
+        // parameter, 0.02 of a rate sensor's scale.
         take_refined_sizes(
             vec![
                 refitted(Cause::YawDamping, 1.25, 1.28),
                 refitted(Cause::Mass, 1.12, 1.06),
+                refitted(Cause::YawRateScale, 0.95, 0.96),
             ],
-            0.1,
+            &Acceptance::default(),
             &mut hypothesis,
             &mut findings,
             &mut rejected,
         );
-        assert_eq!(findings.len(), 1);
+        assert_eq!(findings.len(), 2);
         assert_eq!(findings[0].cause, Cause::YawDamping);
         assert_eq!(findings[0].parameters, vec![("scale", 1.28, 0.02)]);
+        assert_eq!(findings[1].cause, Cause::YawRateScale);
+        assert_eq!(findings[1].parameters, vec![("scale", 0.96, 0.02)]);
+        assert_eq!(hypothesis.effects.yaw_rate_scale, 0.96);
         assert_eq!(hypothesis.profile_scales, [1.0, 1.28, 1.0, 1.0]);
         assert_eq!(rejected.len(), 1);
         assert_eq!(rejected[0].cause, Cause::Mass);

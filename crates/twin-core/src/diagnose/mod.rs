@@ -18,9 +18,10 @@
 //!    `catalogue`): the water current (two states), a loss per propeller
 //!    (where propeller data exist), a heading-sensor offset, a scale error
 //!    of the reported SOG or of the speed through water, GNSS latency, the
-//!    GNSS antenna's lever arm, a sideslip in turns (kinematic base), and
-//!    the vessel's own dynamics on the kinetic base: its surge damping, yaw
-//!    damping and mass over the profile's. Each is fitted on the first part
+//!    GNSS antenna's lever arm, a sideslip in turns (kinematic base), a
+//!    scale error of the rate sensor's yaw rate, and the vessel's own
+//!    dynamics on the kinetic base: its surge damping, yaw damping and mass
+//!    over the profile's. Each is fitted on the first part
 //!    of the log (states: estimated by the filter; parameters: maximum
 //!    likelihood over the filter's one-step-ahead predictions, within the
 //!    cause's physical bounds), then held fixed and judged on the held-out
@@ -35,7 +36,8 @@
 //!    held-out likelihood), the fitted size is at least `min_z` standard
 //!    deviations from none, and at least the practical size a user would
 //!    act on; of two causes whose gains are within `min_gain_nll` of each
-//!    other, the one with fewer parameters. Then the others are tried again
+//!    other, the one with fewer parameters, and of two with as many, the
+//!    one that does not say a sensor is wrong. Then the others are tried again
 //!    on top of it, until none clears the bars: combined effects are found
 //!    one after the other. Then each finding is judged again against the
 //!    model with all the others, and one that no longer gains
@@ -53,11 +55,12 @@
 //!    not tell the two apart, the split that leaves none shared is named. A cause of the vessel's dynamics
 //!    must make the held-out forecasts better over the horizons taken
 //!    together (a steady force it only absorbs makes them worse). Last,
-//!    the sizes of a yaw damping and a mass finding are fitted again
-//!    jointly with the level of the velocities' process noise per axis
-//!    (`noise_level`): the search holds that noise at the harbour water's,
-//!    and a likelihood maximised with a noise level that is not the data's
-//!    biases a dynamics parameter towards a faster-contracting hull.
+//!    the sizes of a yaw damping, a mass and a yaw-rate scale finding are
+//!    fitted again jointly with the level of the velocities' process noise
+//!    per axis (`noise_level`): the search holds that noise at the harbour
+//!    water's, and a likelihood maximised with a noise level that is not
+//!    the data's biases a dynamics parameter towards a faster-contracting
+//!    hull, and a rate sensor's scale below one.
 //!    In every round, a loss candidate whose estimate rises more than 30 s
 //!    into the log is a step: its size and onset are fitted as one on the
 //!    training part (the filter's estimate at the split lags a step, and

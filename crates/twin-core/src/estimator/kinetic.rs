@@ -585,7 +585,7 @@ impl KineticBase {
             .or(fix.cog_rad)
             .unwrap_or(0.0);
         x0[idx::U] = fix.sog_mps.unwrap_or(0.0) / fx.sog_scale;
-        x0[idx::R] = fix.yaw_rate_radps.unwrap_or(0.0);
+        x0[idx::R] = fix.yaw_rate_radps.map_or(0.0, |r| r / fx.yaw_rate_scale);
         let current_variance = match self.options.current {
             Term::Free => self.initial_current_sigma_mps.powi(2),
             Term::Off => HELD_VARIANCE,

@@ -101,8 +101,8 @@ impl WaterBase {
     /// The first estimate from a fix: position as measured; heading from the
     /// sensor (less its offset), else the course; speed through water from
     /// the log (less its scale), else the speed over ground (less its
-    /// scale); yaw rate from the gyro, else zero; the current as its term
-    /// says.
+    /// scale); yaw rate from the gyro (less its scale), else zero; the
+    /// current as its term says.
     pub fn prior(&self, fix: &LocalFix) -> AekfState<7, MEASUREMENTS, 0> {
         let model = &self.filter.model;
         let r = &self.filter.config.measurement_noise;
@@ -119,7 +119,9 @@ impl WaterBase {
             .map(|v| v / model.stw_scale)
             .or(fix.sog_mps.map(|s| s / model.effects.sog_scale))
             .unwrap_or(0.0);
-        x0[idx::R] = fix.yaw_rate_radps.unwrap_or(0.0);
+        x0[idx::R] = fix
+            .yaw_rate_radps
+            .map_or(0.0, |r| r / model.effects.yaw_rate_scale);
         let current_variance = match self.current {
             Term::Free => CURRENT_PRIOR_VARIANCE,
             Term::Off => 1e-12,

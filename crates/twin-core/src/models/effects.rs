@@ -1,6 +1,7 @@
 //! Sensor-side effects a model's measurement can include: where the GNSS
 //! antenna sits, a heading sensor's offset, a scale error of the reported
-//! speed over ground, and GNSS latency. They are the measurement half of
+//! speed over ground, GNSS latency, and a scale error of the rate sensor's
+//! yaw rate. They are the measurement half of
 //! `twin diagnose`'s catalogue of causes (the other half, the water current
 //! and the propellers' losses, are states and faults of the models).
 //!
@@ -13,6 +14,7 @@
 //! SOG      = s |velocity|                  (scale s)
 //! COG      = atan2(velocity) - L r         (the course L seconds ago)
 //! heading  = psi + d                       (offset d)
+//! yaw rate = g r                           (rate sensor's scale g)
 //! ```
 //!
 //! to first order in `L`, and its Jacobian is taken numerically (central
@@ -29,6 +31,9 @@ pub struct SensorEffects {
     pub sog_scale: f64,
     /// GNSS data describe the vessel this long before their time stamps, s.
     pub gnss_latency_s: f64,
+    /// The rate sensor's yaw rate divided by the true one (a gyro's scale
+    /// factor error, or a rate of turn damped by its sensor).
+    pub yaw_rate_scale: f64,
 }
 
 impl Default for SensorEffects {
@@ -38,6 +43,7 @@ impl Default for SensorEffects {
             heading_offset_rad: 0.0,
             sog_scale: 1.0,
             gnss_latency_s: 0.0,
+            yaw_rate_scale: 1.0,
         }
     }
 }

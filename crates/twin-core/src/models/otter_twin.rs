@@ -928,7 +928,7 @@ impl OtterTwin {
                 m[2],
                 m[3],
                 m[4] + x[idx::HEADING_BIAS],
-                x[idx::R],
+                self.effects.yaw_rate_scale * x[idx::R],
             ])
         };
         let predicted = h(x);
@@ -1391,6 +1391,15 @@ mod tests {
             x[idx::PSI] + x[idx::HEADING_BIAS]
         );
         assert_eq!(o.predicted[meas::YAW_RATE], x[idx::R]);
+        // A rate sensor reading 4 % low measures 0.96 of the yaw rate, and
+        // its row of H says so.
+        let scaled = twin.with_effects(SensorEffects {
+            yaw_rate_scale: 0.96,
+            ..Default::default()
+        });
+        let o = scaled.observe_state(&x);
+        assert!((o.predicted[meas::YAW_RATE] - 0.96 * x[idx::R]).abs() < 1e-15);
+        assert!((o.jacobian[(meas::YAW_RATE, idx::R)] - 0.96).abs() < 1e-6);
     }
 
     #[test]
@@ -1421,6 +1430,7 @@ mod tests {
             heading_offset_rad: 0.02,
             sog_scale: 1.03,
             gnss_latency_s: 0.15,
+            yaw_rate_scale: 0.96,
         };
         let twin = OtterTwin::default();
         for (k, x) in [

@@ -113,7 +113,7 @@ impl WaterKinematic {
             g[3],
             g[4],
             self.stw_scale * x[idx::U],
-            x[idx::R],
+            self.effects.yaw_rate_scale * x[idx::R],
         ])
     }
 }
@@ -238,5 +238,16 @@ mod tests {
             let expected = if j == idx::R { 1.0 } else { 0.0 };
             assert!((o.jacobian[(meas::YAW_RATE, j)] - expected).abs() < 1e-6);
         }
+        // One reading 5 % high measures 1.05 of it.
+        let high = WaterKinematic {
+            effects: SensorEffects {
+                yaw_rate_scale: 1.05,
+                ..SensorEffects::default()
+            },
+            ..WaterKinematic::default()
+        };
+        let o = high.observe(&x);
+        assert!((o.predicted[meas::YAW_RATE] - 1.05 * x[idx::R]).abs() < 1e-15);
+        assert!((o.jacobian[(meas::YAW_RATE, idx::R)] - 1.05).abs() < 1e-6);
     }
 }

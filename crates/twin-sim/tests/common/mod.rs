@@ -47,10 +47,16 @@ pub fn northward(duration_s: f64, speed_mps: f64, length_m: f64) -> Scenario {
 
 /// The truth sample at an elapsed time (the series is at exact instants).
 pub fn truth_at(run: &SimRun, elapsed_s: f64) -> &TruthSample {
+    truth_near(run, elapsed_s).unwrap_or_else(|| panic!("no truth at {elapsed_s} s"))
+}
+
+/// The truth sample at an elapsed time, if the series has one there (to
+/// 1e-6 s: a unix time stamp less the start holds the elapsed time to
+/// about 1e-7 s).
+pub fn truth_near(run: &SimRun, elapsed_s: f64) -> Option<&TruthSample> {
     run.truth
         .iter()
         .find(|t| (t.elapsed_s - elapsed_s).abs() < 1e-6)
-        .unwrap_or_else(|| panic!("no truth at {elapsed_s} s"))
 }
 
 /// The run's local frame.
