@@ -4,7 +4,7 @@
 //! this command's).
 //!
 //! ```text
-//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I [--every S]] [--onsets] [--list] [--known-antenna] [--identified] [--gyro all|none]
+//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I [--every S]] [--onsets] [--list] [--known-antenna] [--identified] [--gyro all|none] [--gyro-bias-deg-s B] [--hold-gyro-bias]
 //! ```
 //!
 //! `--trace I` prints what the twin published over draw `I`, every 10 s
@@ -23,7 +23,11 @@
 //! (`twin_tests::trust::with_identified_profile`);
 //! `--gyro all` gives every draw a rate gyro and `--gyro none` none, the
 //! draws otherwise the same (vessel, effects, noise): run both to see what
-//! a measured yaw rate buys.
+//! a measured yaw rate buys. `--gyro-bias-deg-s B` gives each draw's gyro a
+//! bias of B deg/s, its sign alternating from draw to draw (the matrix's
+//! own gyros have none); `--hold-gyro-bias` has the twin read every rate
+//! sensor as exact (`KineticConfig::estimate_yaw_rate_bias` off) instead
+//! of estimating its bias.
 
 use twin_core::decision::ThrusterStatus;
 use twin_core::twin::TwinConfig;
@@ -42,6 +46,10 @@ struct Told {
     /// Every draw with a rate gyro (true) or none (false), in place of
     /// the drawn one.
     gyro: Option<bool>,
+    /// Each gyro's bias, deg/s, its sign alternating from draw to draw.
+    gyro_bias_deg_s: f64,
+    /// The twin reads the rate sensor as exact.
+    hold_gyro_bias: bool,
 }
 
 /// The matrix's draws of `seed`, with the gyro `told` sets.
@@ -52,6 +60,10 @@ fn draws(own: usize, other: usize, seed: u64, told: Told) -> Vec<Draw> {
             d.gyro = gyro;
         }
     }
+    for (i, d) in all.iter_mut().enumerate() {
+        let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
+        d.gyro_bias_deg_s = sign * told.gyro_bias_deg_s;
+    }
     all
 }
 
@@ -59,6 +71,7 @@ fn draws(own: usize, other: usize, seed: u64, told: Told) -> Vec<Draw> {
 /// adds.
 fn config_of(draw: &Draw, told: Told) -> Result<TwinConfig, String> {
     let mut config = TwinConfig::default();
+    config.kinetic.estimate_yaw_rate_bias = !told.hold_gyro_bias;
     if told.antenna {
         config = with_known_antenna(config, draw);
     }
@@ -97,12 +110,20 @@ fn main() -> Result<(), String> {
             "--onsets" => onsets = true,
             "--known-antenna" => told.antenna = true,
             "--identified" => told.identified = true,
+            "--hold-gyro-bias" => told.hold_gyro_bias = true,
             "--gyro" => {
                 told.gyro = match args.next().as_deref() {
                     Some("all") => Some(true),
                     Some("none") => Some(false),
                     other => return Err(format!("--gyro needs all or none, got {other:?}")),
                 }
+            }
+            "--gyro-bias-deg-s" => {
+                told.gyro_bias_deg_s = args
+                    .next()
+                    .and_then(|v| v.parse::<f64>().ok())
+                    .filter(|b| b.is_finite())
+                    .ok_or("--gyro-bias-deg-s needs a number")?;
             }
             "--trace" => trace = Some(value("--trace")? as usize),
             "--every" => every_s = value("--every")? as f64,

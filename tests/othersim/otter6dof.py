@@ -116,8 +116,8 @@ What is around the model (all this simulator's own)
     Shaft speeds, 10 Hz: the actual shaft speeds plus white noise of 1.5 rpm,
       rounded to 0.1 rpm.
     Rate gyro (with --gyro): the true yaw rate at the fix's stamp, times
-      --gyro-scale (1 by default), plus white noise of 0.2 deg/s, written
-      into the fix's line.
+      --gyro-scale (1 by default), plus --gyro-bias-deg-s (0 by default)
+      and white noise of 0.2 deg/s, written into the fix's line.
   Injectable effects (any combination):
     current        speed (m/s) and the direction it flows toward (deg)
     heading_offset the heading sensor reads this much more than the truth (deg)
@@ -801,6 +801,7 @@ class RunConfig:
     gyro: bool = False  # a rate gyro's yaw rate in each fix's line
     gyro_sigma_degps: float = 0.2
     gyro_scale: float = 1.0  # reported over true: the gyro's scale error
+    gyro_bias_degps: float = 0.0  # reported minus true scale x rate: its bias
     scales: VesselScales = field(default_factory=VesselScales)
 
 
@@ -963,9 +964,11 @@ def simulate(cfg: RunConfig, fx: Effects):
     )
     keep = stamps <= cfg.duration_s + 1e-9
     rate_at = np.interp(stamps, t_grid, np.array(rate_truth))
-    rate_rep = cfg.gyro_scale * rate_at + math.radians(
-        cfg.gyro_sigma_degps
-    ) * rng_gyro.standard_normal(count)
+    rate_rep = (
+        cfg.gyro_scale * rate_at
+        + math.radians(cfg.gyro_bias_degps)
+        + math.radians(cfg.gyro_sigma_degps) * rng_gyro.standard_normal(count)
+    )
 
     s = np.array(shaft_samples)
     shaft_noise = cfg.shaft_sigma_rpm * rng_shaft.standard_normal((len(s), 2))
@@ -1033,6 +1036,7 @@ def simulate(cfg: RunConfig, fx: Effects):
             "shaft_rate_hz": 1.0 / cfg.shaft_period_s,
             "gyro": cfg.gyro,
             "gyro_scale": cfg.gyro_scale,
+            "gyro_bias_degps": cfg.gyro_bias_degps,
             "shaft_sigma_rpm": cfg.shaft_sigma_rpm,
             "antenna_height_m": cfg.antenna_height_m,
         },
@@ -1184,6 +1188,8 @@ def parse_args(argv):
                     help="write a rate gyro's yaw_rate_radps into each fix's line")
     ap.add_argument("--gyro-scale", type=float, default=1.0,
                     help="the gyro reads this times the true yaw rate (a scale error)")
+    ap.add_argument("--gyro-bias-deg-s", type=float, default=0.0,
+                    help="the gyro reads this much more than the true yaw rate (a bias), deg/s")
     ap.add_argument("--vessel", choices=tuple(VESSELS), default="otter",
                     help="the craft's scales (VESSELS); a --*-scale given overrides its own")
     for name in ("mass", "added-mass", "surge-damping", "sway-damping",
@@ -1242,6 +1248,7 @@ def main(argv=None) -> int:
         path=args.path,
         gyro=args.gyro,
         gyro_scale=args.gyro_scale,
+        gyro_bias_degps=args.gyro_bias_deg_s,
         shaft_period_s=1.0 / args.shaft_rate_hz,
         scales=vessel_scales(args),
     )

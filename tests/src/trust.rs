@@ -253,6 +253,9 @@ pub struct Draw {
     pub shaft_rate_hz: f64,
     /// Whether a rate gyro's yaw rate rides on the fixes.
     pub gyro: bool,
+    /// The rate gyro's bias (reported minus true), deg/s; none in the
+    /// matrix's own draws.
+    pub gyro_bias_deg_s: f64,
     /// Length of the trial, s.
     pub duration_s: f64,
     /// The direction of a steady turn: +1 to starboard, -1 to port.
@@ -346,7 +349,13 @@ impl Draw {
             s,
             ", shafts {} Hz{}",
             self.shaft_rate_hz,
-            if self.gyro { ", gyro" } else { "" }
+            if !self.gyro {
+                String::new()
+            } else if self.gyro_bias_deg_s == 0.0 {
+                ", gyro".to_string()
+            } else {
+                format!(", gyro biased {:+.2} deg/s", self.gyro_bias_deg_s)
+            }
         );
         s
     }
@@ -421,6 +430,7 @@ fn draw(rng: &mut StdRng, simulator: Simulator, index: usize, class: Class) -> D
         current: None,
         shaft_rate_hz: if rng.random_bool(0.5) { 5.0 } else { 20.0 },
         gyro: rng.random_bool(0.5),
+        gyro_bias_deg_s: 0.0,
         duration_s: if class.straight() { 180.0 } else { 300.0 },
         turn_sign: 1.0,
     };
@@ -562,6 +572,7 @@ fn with_draw(draw: &Draw, mut sc: Scenario) -> Scenario {
     };
     sc.sensors.propellers.rate_hz = draw.shaft_rate_hz;
     sc.sensors.yaw_rate.enabled = draw.gyro;
+    sc.sensors.yaw_rate.bias_deg_s = draw.gyro_bias_deg_s;
     if let Some((speed_mps, toward_deg)) = draw.current {
         sc.current = Some(CurrentSpec {
             speed_mps,
@@ -630,6 +641,7 @@ fn simulate_other(draw: &Draw) -> Result<Trial, String> {
         .args(["--thrust-scale", &v.thrust.to_string()]);
     if draw.gyro {
         cmd.arg("--gyro");
+        cmd.arg(format!("--gyro-bias-deg-s={}", draw.gyro_bias_deg_s));
     }
     if draw.heading_offset_deg != 0.0 {
         cmd.arg(format!("--heading-offset-deg={}", draw.heading_offset_deg));

@@ -305,7 +305,7 @@ impl Measurements<'_> {
         let t = kinetic.time(reps(101));
         rows.push(Row::judged(
             format!(
-                "AEKF step, extended model (OtterTwin: 9 states, 6 measurements, 6 faults; {}-step trial)",
+                "AEKF step, extended model (OtterTwin: 10 states, 6 measurements, 6 faults; {}-step trial)",
                 thousands(kinetic.steps.len() as u64)
             ),
             duration_text(t.ns_per_step_median),

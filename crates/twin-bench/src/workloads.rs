@@ -96,7 +96,7 @@ pub fn feed(twin: &mut VesselTwin, inputs: &[TwinInput]) {
     }
 }
 
-/// The extended twin's filter (`OtterTwin`: 9 states, 6 measurements, 4
+/// The extended twin's filter (`OtterTwin`: 10 states, 6 measurements, 6
 /// faults) as `VesselTwin` runs it.
 pub use twin_core::estimator::KineticFilter;
 
@@ -141,8 +141,12 @@ pub fn kinetic_steps(inputs: &[TwinInput], config: TwinConfig) -> anyhow::Result
     let gate = CourseGate {
         min_sog_mps: config.gating.min_sog_for_course_mps,
     };
-    let base = KineticBase::new(&config.kinetic, gate, KineticOptions::live(true))
-        .map_err(|e| anyhow::anyhow!("the extended twin's filter: {e}"))?;
+    let base = KineticBase::new(
+        &config.kinetic,
+        gate,
+        KineticOptions::live(true, config.kinetic.estimate_yaw_rate_bias),
+    )
+    .map_err(|e| anyhow::anyhow!("the extended twin's filter: {e}"))?;
     let mut twin = VesselTwin::new(config).map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut start = None;
     let mut steps = Vec::new();

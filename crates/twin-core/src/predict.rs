@@ -171,7 +171,7 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::models::otter_twin::{OtterTwin, ShaftSpeeds};
+    use crate::models::otter_twin::{OtterTwin, STATES, ShaftSpeeds};
     use crate::twin::TwinConfig;
 
     /// The forecast's AVX2 copy and its baseline code give the same bits
@@ -184,7 +184,7 @@ mod tests {
         }
         let kinetic = TwinConfig::default().kinetic;
         let model = OtterTwin::new(kinetic.params);
-        let mut x0 = SVector::<f64, 9>::zeros();
+        let mut x0 = SVector::<f64, STATES>::zeros();
         x0[3] = 1.4;
         x0[5] = 0.1;
         let mut state = AekfState::new(

@@ -676,7 +676,10 @@ impl VesselTwin {
                 base: KineticBase::new(
                     &config.kinetic,
                     gate,
-                    KineticOptions::live(config.kinetic.estimate_current),
+                    KineticOptions::live(
+                        config.kinetic.estimate_current,
+                        config.kinetic.estimate_yaw_rate_bias,
+                    ),
                 )?,
                 state: None,
                 last_report: None,

@@ -285,6 +285,12 @@ fn extended_forecast_bands_match_the_filters_sub_step_chain() {
             SMatrix::identity() * 0.5,
             nalgebra::SVector::zeros(),
         );
+        // A twin whose rate sensor's bias is known (held): with it still
+        // uncertain after these 120 s (its prior, 0.5 deg/s), the yaw rate
+        // is less certain and the two differ by up to 1.008 % in the hard
+        // turn (docs/known-issues.md, "Accuracy").
+        est.p[(idx::YAW_RATE_BIAS, idx::YAW_RATE_BIAS)] = 1e-12;
+        est.process_noise_density[(idx::YAW_RATE_BIAS, idx::YAW_RATE_BIAS)] = 0.0;
         for _ in 0..600 {
             truth = model.propagate(&truth, &shafts, &theta_true, 0.2);
             let y = model.observe(&truth).predicted;

@@ -260,6 +260,11 @@ pub(super) struct Hypothesis {
     /// at zero while causes are searched (a heading offset is a cause of
     /// its own), estimated by `identify`, as the live twin does.
     pub heading_bias: Term<1>,
+    /// The rate sensor's bias as a state of the kinetic base: held at zero
+    /// while causes are searched (the rate sensor's scale is a cause of its
+    /// own, its bias is not in the catalogue), estimated by `identify`, as
+    /// the live twin does.
+    pub yaw_rate_bias: Term<1>,
     pub effects: SensorEffects,
     pub stw_scale: f64,
     pub sideslip_m: f64,
@@ -280,6 +285,7 @@ impl Hypothesis {
             current: Term::Off,
             loss: Term::Off,
             heading_bias: Term::Off,
+            yaw_rate_bias: Term::Off,
             effects: SensorEffects::default(),
             stw_scale: 1.0,
             sideslip_m: 0.0,

@@ -186,14 +186,16 @@ fn exact_twin(base: &DiagnoseConfig, params: VesselParams) -> DiagnoseConfig {
     }
 }
 
-/// The healthy twin's hypothesis: the current and the heading sensor's
-/// offset estimated (as the live twin estimates them: held at zero, a
-/// 6 deg offset was fitted into the hull, the mass 20 % high), no loss.
+/// The healthy twin's hypothesis: the current, the heading sensor's
+/// offset and the rate sensor's bias estimated (as the live twin estimates
+/// them: held at zero, a 6 deg offset was fitted into the hull, the mass
+/// 20 % high), no loss.
 fn healthy() -> Hypothesis {
     Hypothesis {
         current: Term::Free,
         loss: Term::Fixed([0.0, 0.0]),
         heading_bias: Term::Free,
+        yaw_rate_bias: Term::Free,
         ..Hypothesis::nominal()
     }
 }

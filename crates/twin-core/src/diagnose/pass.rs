@@ -291,6 +291,7 @@ pub(super) fn kinetic_pass(prep: &Prepared, hyp: &Hypothesis, opts: PassOptions<
             hyp.loss
         },
         heading_bias: hyp.heading_bias,
+        yaw_rate_bias: hyp.yaw_rate_bias,
         profile_errors: Term::Off,
     };
     // Scales of 1 leave every parameter as it is, bit for bit.

@@ -41,6 +41,11 @@ pub struct KineticConfig {
     pub estimate_current: bool,
     /// Initial standard deviation of the heading sensor's offset, rad.
     pub initial_heading_bias_sigma_rad: f64,
+    /// Initial standard deviation of the rate sensor's bias, rad/s.
+    pub initial_yaw_rate_bias_sigma_radps: f64,
+    /// Estimate the rate sensor's bias (off: the rate sensor is read as
+    /// exact, for one calibrated on this vessel).
+    pub estimate_yaw_rate_bias: bool,
     /// How far the profile's surge damping, yaw damping, thrust coefficient
     /// and mass may be from the vessel's, as standard deviations of their
     /// relative errors: the prior of the profile-error faults. An
@@ -184,8 +189,9 @@ impl KineticConfig {
             2.5e-3 * f,
             7.8e-4 * f, // surge, sway, yaw accelerations
             1e-6,
-            1e-6, // current
-            1e-8, // heading sensor offset
+            1e-6,  // current
+            1e-8,  // heading sensor offset
+            1e-10, // rate sensor bias
         ]));
         // The sway-yaw mass coupling turns a sway force into a yaw acceleration too.
         q[(idx::V, idx::R)] = -7.7e-4 * f;
@@ -223,6 +229,8 @@ impl KineticConfig {
             initial_current_sigma_mps: 0.5,
             estimate_current: true,
             initial_heading_bias_sigma_rad: 10f64.to_radians(),
+            initial_yaw_rate_bias_sigma_radps: 0.5f64.to_radians(),
+            estimate_yaw_rate_bias: true,
             profile_sigma,
             unmodelled_force_factor: f,
             forecast_force_factor: f,
@@ -373,6 +381,8 @@ pub struct KineticOptions {
     pub losses: Term<2>,
     /// The heading sensor's offset, rad.
     pub heading_bias: Term<1>,
+    /// The rate sensor's bias, rad/s.
+    pub yaw_rate_bias: Term<1>,
     /// The relative errors of the profile's surge damping, yaw damping,
     /// thrust coefficient and mass.
     pub profile_errors: Term<4>,
@@ -380,9 +390,9 @@ pub struct KineticOptions {
 
 impl KineticOptions {
     /// The live twin's: no sensor effects; the losses, the damping errors
-    /// and the heading sensor's offset estimated; the current estimated or
-    /// held at zero.
-    pub fn live(estimate_current: bool) -> Self {
+    /// and the heading sensor's offset estimated; the current and the rate
+    /// sensor's bias estimated or held at zero.
+    pub fn live(estimate_current: bool, estimate_yaw_rate_bias: bool) -> Self {
         Self {
             effects: SensorEffects::default(),
             current: if estimate_current {
@@ -392,6 +402,11 @@ impl KineticOptions {
             },
             losses: Term::Free,
             heading_bias: Term::Free,
+            yaw_rate_bias: if estimate_yaw_rate_bias {
+                Term::Free
+            } else {
+                Term::Off
+            },
             profile_errors: Term::Free,
         }
     }
@@ -404,6 +419,7 @@ pub struct KineticBase {
     options: KineticOptions,
     initial_current_sigma_mps: f64,
     initial_heading_bias_sigma_rad: f64,
+    initial_yaw_rate_bias_sigma_radps: f64,
     excitation_sigma: f64,
     relative_excitation_sigma: f64,
     relative_release_sigma: f64,
@@ -472,6 +488,9 @@ impl KineticBase {
         if options.heading_bias != Term::Free {
             filter.process_noise_density[(idx::HEADING_BIAS, idx::HEADING_BIAS)] = 0.0;
         }
+        if options.yaw_rate_bias != Term::Free {
+            filter.process_noise_density[(idx::YAW_RATE_BIAS, idx::YAW_RATE_BIAS)] = 0.0;
+        }
         let s0 = &mut filter.initial_fault_covariance;
         let mut hold = |i: usize| {
             s0.set_row(i, &SMatrix::<f64, 1, FAULTS>::zeros());
@@ -498,6 +517,7 @@ impl KineticBase {
             options,
             initial_current_sigma_mps: config.initial_current_sigma_mps,
             initial_heading_bias_sigma_rad: config.initial_heading_bias_sigma_rad,
+            initial_yaw_rate_bias_sigma_radps: config.initial_yaw_rate_bias_sigma_radps,
             excitation_sigma: config.excitation_sigma,
             relative_excitation_sigma: config.relative_excitation_sigma,
             relative_release_sigma: config.relative_release_sigma,
@@ -603,6 +623,14 @@ impl KineticBase {
                 HELD_VARIANCE
             }
         };
+        let rate_bias_variance = match self.options.yaw_rate_bias {
+            Term::Free => self.initial_yaw_rate_bias_sigma_radps.powi(2),
+            Term::Off => HELD_VARIANCE,
+            Term::Fixed([b]) => {
+                x0[idx::YAW_RATE_BIAS] = b;
+                HELD_VARIANCE
+            }
+        };
         let r = &self.filter.config.measurement_noise;
         // Not knowing the sensor's offset, the heading is as uncertain as
         // it (set below, once the offset's prior is known).
@@ -624,6 +652,7 @@ impl KineticBase {
             current_variance,
             current_variance,
             bias_variance,
+            rate_bias_variance,
         ]));
         if let Some(learnt) = restored.and_then(|r| r.surroundings) {
             self.restore_surroundings(&learnt, &mut x0, &mut p0);
@@ -636,6 +665,13 @@ impl KineticBase {
             p0[(idx::PSI, idx::PSI)] = r[(meas::HEADING, meas::HEADING)] + bias_variance;
             p0[(idx::PSI, idx::HEADING_BIAS)] = -bias_variance;
             p0[(idx::HEADING_BIAS, idx::PSI)] = -bias_variance;
+        }
+        if let Some(rate) = fix.yaw_rate_radps {
+            // Likewise the yaw rate is the rate sensor's less its bias.
+            x0[idx::R] = (rate - x0[idx::YAW_RATE_BIAS]) / fx.yaw_rate_scale;
+            p0[(idx::R, idx::R)] = r[(meas::YAW_RATE, meas::YAW_RATE)] + rate_bias_variance;
+            p0[(idx::R, idx::YAW_RATE_BIAS)] = -rate_bias_variance;
+            p0[(idx::YAW_RATE_BIAS, idx::R)] = -rate_bias_variance;
         }
         let config = &self.filter.config;
         let mut theta0 = Faults::zeros();
@@ -683,6 +719,9 @@ impl KineticBase {
         }
         if self.options.heading_bias == Term::Off {
             state.x[idx::HEADING_BIAS] = 0.0;
+        }
+        if self.options.yaw_rate_bias == Term::Off {
+            state.x[idx::YAW_RATE_BIAS] = 0.0;
         }
         Ok(report)
     }
@@ -923,7 +962,7 @@ mod tests {
     fn the_course_is_as_noisy_as_the_velocity_over_the_speed() {
         let config = KineticConfig::otter();
         let gate = CourseGate { min_sog_mps: 0.3 };
-        let base = KineticBase::new(&config, gate, KineticOptions::live(true)).unwrap();
+        let base = KineticBase::new(&config, gate, KineticOptions::live(true, true)).unwrap();
         let r = config.filter.measurement_noise;
         let (course, speed) = (r[(meas::COG, meas::COG)], r[(meas::SOG, meas::SOG)]);
         let fix = |sog_mps: Option<f64>| LocalFix {

@@ -2,13 +2,15 @@
 //! driven by the measured propeller speeds. It estimates each propeller's
 //! loss, and beside it what a real vessel and its sensors get wrong about
 //! the model's numbers: the hull's surge and yaw damping as the profile
-//! gives them, a heading sensor's offset, and the water current
-//! (docs/model.md sections 5 and 8).
+//! gives them, a heading sensor's offset, a rate sensor's bias, and the
+//! water current (docs/model.md sections 5 and 8).
 //!
-//! State (9) `[north_m, east_m, psi_rad, u_mps, v_mps, r_radps,
-//! current_north_mps, current_east_mps, heading_bias_rad]`; `u`, `v` are the
-//! velocities through the water in the body frame; the heading bias is what
-//! the heading sensor reads minus the true heading. Faults (4) `theta =
+//! State (10) `[north_m, east_m, psi_rad, u_mps, v_mps, r_radps,
+//! current_north_mps, current_east_mps, heading_bias_rad,
+//! yaw_rate_bias_radps]`; `u`, `v` are the velocities through the water in
+//! the body frame; the heading bias is what the heading sensor reads minus
+//! the true heading, the yaw-rate bias what the rate sensor reads minus the
+//! true yaw rate. Faults (4) `theta =
 //! [loss_port, loss_starboard, surge_damping, yaw_damping]`: the two losses
 //! of effectiveness and the relative errors of the linear surge damping and
 //! of the (linear and quadratic) yaw damping, `X_u (1 + theta_2)`,
@@ -17,11 +19,11 @@
 //! speeds.
 //!
 //! ```text
-//! eta'  = R(psi) [u, v] + c,   psi' = r,   c' = b' = 0 (+ noise)
+//! eta'  = R(psi) [u, v] + c,   psi' = r,   c' = b' = g' = 0 (+ noise)
 //! (1 + th_m) M nu' = tau(n, theta) - C(nu) nu + [X_u (1 + th_u) u, Y_v v + Y_cf, N_r (1 + th_r) (1 + 10|r|) r + N_cf]
 //! tau   = [(1-th_p) T_p + (1-th_s) T_s, 0, b ((1-th_p) T_p - (1-th_s) T_s)],  T = (1 + th_k) k n|n|
 //! C(nu) nu = [-m x_g r^2 - (m + a22) v r, (m + a11) u r, m x_g u r + (a22 - a11) u v]
-//! heading = psi + b,  yaw rate = r
+//! heading = psi + b,  yaw rate = r + g
 //! ```
 //!
 //! Why the damping and thrust errors are estimated with the losses: a hull
@@ -35,7 +37,12 @@
 //! a certainty the data do not give (docs/model.md section 8). Why the
 //! heading bias is a state: a heading sensor off by a few degrees, read as
 //! exact, makes the model's sway and yaw balance wrong in every turn, and
-//! the filter would explain it with a one-sided loss.
+//! the filter would explain it with a one-sided loss. The rate sensor's bias
+//! likewise: read as exact, a gyro 0.5 deg/s off is a steady yaw moment the
+//! filter can only give to one propeller (over seeds 1-8 of the trust
+//! matrix with every gyro so biased, 277 of 913 healthy propellers declared
+//! FAULT with the bias held at zero, none with it estimated). The heading's
+//! changes, or the course's, tell it.
 //!
 //! Writing the kinetics in the velocity through the water is exact for a
 //! constant, irrotational current (Fossen 2021, property 10.1). The cross-flow
@@ -106,7 +113,7 @@ fn profile_factors(theta: &Faults) -> [(f64, f64); 4] {
 }
 
 /// Number of states.
-pub const STATES: usize = 9;
+pub const STATES: usize = 10;
 /// Number of measurement components.
 pub const MEASUREMENTS: usize = 6;
 /// Number of faults.
@@ -137,6 +144,8 @@ pub mod idx {
     pub const CURRENT_EAST: usize = 7;
     /// Heading sensor minus true heading, rad.
     pub const HEADING_BIAS: usize = 8;
+    /// Rate sensor's yaw rate minus the true one (a gyro's bias), rad/s.
+    pub const YAW_RATE_BIAS: usize = 9;
 }
 
 /// Index of each measurement component.
@@ -246,6 +255,7 @@ const F_PATTERN: Pattern<STATES, STATES> = {
         (CURRENT_NORTH, CURRENT_NORTH),
         (CURRENT_EAST, CURRENT_EAST),
         (HEADING_BIAS, HEADING_BIAS),
+        (YAW_RATE_BIAS, YAW_RATE_BIAS),
     ])
 };
 
@@ -263,6 +273,7 @@ const H_PATTERN_WITHOUT_EFFECTS: Pattern<MEASUREMENTS, STATES> = {
     p[meas::HEADING][PSI] = true;
     p[meas::HEADING][HEADING_BIAS] = true;
     p[meas::YAW_RATE][R] = true;
+    p[meas::YAW_RATE][YAW_RATE_BIAS] = true;
     let mut k = 0;
     while k < velocity.len() {
         p[meas::SOG][velocity[k]] = true;
@@ -928,7 +939,7 @@ impl OtterTwin {
                 m[2],
                 m[3],
                 m[4] + x[idx::HEADING_BIAS],
-                self.effects.yaw_rate_scale * x[idx::R],
+                self.effects.yaw_rate_scale * x[idx::R] + x[idx::YAW_RATE_BIAS],
             ])
         };
         let predicted = h(x);
@@ -970,6 +981,7 @@ impl OtterTwin {
         h[(meas::HEADING, idx::PSI)] = 1.0;
         h[(meas::HEADING, idx::HEADING_BIAS)] = 1.0;
         h[(meas::YAW_RATE, idx::R)] = 1.0;
+        h[(meas::YAW_RATE, idx::YAW_RATE_BIAS)] = 1.0;
         // d vn / d x and d ve / d x over (psi, u, v, cn, ce).
         let dvn = [
             (idx::PSI, -s * u - c * v),
@@ -997,7 +1009,7 @@ impl OtterTwin {
             sog,
             ve.atan2(vn),
             psi + x[idx::HEADING_BIAS],
-            x[idx::R],
+            x[idx::R] + x[idx::YAW_RATE_BIAS],
         ]);
         Observation {
             predicted,
@@ -1017,6 +1029,7 @@ const STATE_NAMES: [&str; STATES] = [
     "current_north_mps",
     "current_east_mps",
     "heading_bias_rad",
+    "yaw_rate_bias_radps",
 ];
 
 impl Model<STATES, MEASUREMENTS, FAULTS> for OtterTwin {
@@ -1062,7 +1075,9 @@ impl Model<STATES, MEASUREMENTS, FAULTS> for OtterTwin {
     }
 
     fn state_angles(&self) -> [bool; STATES] {
-        [false, false, true, false, false, false, false, false, true]
+        [
+            false, false, true, false, false, false, false, false, true, false,
+        ]
     }
 
     fn state_names(&self) -> [&'static str; STATES] {
@@ -1085,7 +1100,7 @@ mod tests {
     use super::*;
 
     fn state() -> State {
-        State::from_column_slice(&[3.0, -4.0, 0.7, 1.6, 0.12, 0.08, 0.2, -0.1, 0.05])
+        State::from_column_slice(&[3.0, -4.0, 0.7, 1.6, 0.12, 0.08, 0.2, -0.1, 0.05, 0.004])
     }
 
     fn faults() -> Faults {
@@ -1390,7 +1405,13 @@ mod tests {
             o.predicted[meas::HEADING],
             x[idx::PSI] + x[idx::HEADING_BIAS]
         );
-        assert_eq!(o.predicted[meas::YAW_RATE], x[idx::R]);
+        // The rate sensor reads the yaw rate plus its bias.
+        assert_eq!(
+            o.predicted[meas::YAW_RATE],
+            x[idx::R] + x[idx::YAW_RATE_BIAS]
+        );
+        assert_eq!(o.jacobian[(meas::YAW_RATE, idx::R)], 1.0);
+        assert_eq!(o.jacobian[(meas::YAW_RATE, idx::YAW_RATE_BIAS)], 1.0);
         // A rate sensor reading 4 % low measures 0.96 of the yaw rate, and
         // its row of H says so.
         let scaled = twin.with_effects(SensorEffects {
@@ -1398,8 +1419,10 @@ mod tests {
             ..Default::default()
         });
         let o = scaled.observe_state(&x);
-        assert!((o.predicted[meas::YAW_RATE] - 0.96 * x[idx::R]).abs() < 1e-15);
+        let want = 0.96 * x[idx::R] + x[idx::YAW_RATE_BIAS];
+        assert!((o.predicted[meas::YAW_RATE] - want).abs() < 1e-15);
         assert!((o.jacobian[(meas::YAW_RATE, idx::R)] - 0.96).abs() < 1e-6);
+        assert!((o.jacobian[(meas::YAW_RATE, idx::YAW_RATE_BIAS)] - 1.0).abs() < 1e-6);
     }
 
     #[test]
@@ -1435,7 +1458,7 @@ mod tests {
         let twin = OtterTwin::default();
         for (k, x) in [
             state(),
-            State::from_column_slice(&[0.0, 0.0, -2.9, 2.5, -0.3, -0.4, -0.3, 0.25, -0.1]),
+            State::from_column_slice(&[0.0, 0.0, -2.9, 2.5, -0.3, -0.4, -0.3, 0.25, -0.1, -0.006]),
         ]
         .into_iter()
         .enumerate()
