@@ -589,8 +589,10 @@ impl KineticBase {
     /// The first estimate from a fix: position as measured; heading from the
     /// heading sensor (less its offset, if the effects have one), else the
     /// course; surge speed from the speed over ground (less its scale); sway
-    /// zero; yaw rate from the gyro, else zero; the current and the heading
-    /// sensor's offset as their terms say, or as `restored` learnt them. The
+    /// zero; yaw rate from the rate sensor (less its bias and scale), else
+    /// zero; the current and the heading sensor's offset as their terms
+    /// say, or as `restored` learnt them; the rate sensor's bias as its term
+    /// says (a calibration does not keep it). The
     /// faults start from `restored` where given (estimate, covariance and
     /// anti-windup memory), else from none with the configured covariance,
     /// or at the values held.
@@ -605,7 +607,6 @@ impl KineticBase {
             .or(fix.cog_rad)
             .unwrap_or(0.0);
         x0[idx::U] = fix.sog_mps.unwrap_or(0.0) / fx.sog_scale;
-        x0[idx::R] = fix.yaw_rate_radps.map_or(0.0, |r| r / fx.yaw_rate_scale);
         let current_variance = match self.options.current {
             Term::Free => self.initial_current_sigma_mps.powi(2),
             Term::Off => HELD_VARIANCE,
