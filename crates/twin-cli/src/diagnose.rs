@@ -38,9 +38,10 @@
 //! data are than their stamps), `lever_arm` (`x_m`, `y_m`: antenna forward,
 //! starboard), `stw_scale` (`scale`), `sideslip` (`lateral_mps_per_radps`),
 //! `yaw_rate_scale` (`scale`: the rate sensor's yaw rate over the true one),
-//! and the profile's own parameters on the kinetic base, each a `scale`
-//! over the profile's value: `surge_damping` (the hull's resistance:
-//! fouling), `yaw_damping`, `mass` (mass, inertia and added mass together).
+//! `yaw_rate_bias` (`bias_deg_s`: what the rate sensor reads at rest), and
+//! the profile's own parameters on the kinetic base, each a `scale` over
+//! the profile's value: `surge_damping` (the hull's resistance: fouling),
+//! `yaw_damping`, `mass` (mass, inertia and added mass together).
 
 // Measurement components are indexed across parallel arrays.
 #![allow(clippy::needless_range_loop)]

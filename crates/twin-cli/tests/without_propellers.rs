@@ -1,7 +1,8 @@
 //! `twin diagnose` on logs with positions, a heading and a rate gyro but no
 //! propeller data, as most boats log: the kinematic water base. The
 //! project's simulator writes the hidden-effect base trial without its shaft
-//! speeds, with a rate gyro (0.2 deg/s of noise at 10 Hz).
+//! speeds, with a rate gyro (0.2 deg/s of noise at 10 Hz): in turn one whose
+//! scale is off, a true one and a biased one.
 //!
 //! Bars, fixed before the draws: besides the simulated hull's own drift in
 //! its turns (a `sideslip`, outward: negative), exactly the hidden effect is
@@ -22,7 +23,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
 #[test]
-fn a_log_without_propellers_names_the_hulls_drift_and_a_gyros_scale_never_a_latency() {
+fn a_log_without_propellers_names_the_hulls_drift_and_a_gyros_error_never_a_latency() {
     let mut rng = StdRng::seed_from_u64(20261129);
     let draws: Vec<(usize, Hidden, u64)> = (0..6)
         .map(|i| {

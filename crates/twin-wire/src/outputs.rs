@@ -603,7 +603,8 @@ pub struct RefusedSender {
 pub struct FindingJson {
     /// The cause: `current`, `thruster_loss`, `heading_offset`, `sog_scale`,
     /// `gnss_latency`, `lever_arm`, `stw_scale`, `sideslip`,
-    /// `yaw_rate_scale`, `surge_damping`, `yaw_damping`, `mass`.
+    /// `yaw_rate_scale`, `yaw_rate_bias`, `surge_damping`, `yaw_damping`,
+    /// `mass`.
     pub cause: String,
     /// Its parameters (numbers, and `side` for a thruster loss).
     pub parameters: BTreeMap<String, serde_json::Value>,

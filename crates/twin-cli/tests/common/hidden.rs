@@ -37,23 +37,34 @@ pub enum Hidden {
     YawRateScale {
         scale: f64,
     },
+    /// A rate gyro reading `bias_deg_s` when the vessel does not turn
+    /// (drawn by the gyro tests only).
+    #[allow(dead_code)]
+    YawRateBias {
+        bias_deg_s: f64,
+    },
 }
 
-/// The `i`th draw of the rate-gyro tests: every other one a gyro reading
-/// 1 ± U(0.06, 0.12) times the yaw rate, either sign, the others a true
-/// gyro (nothing hidden).
+/// The `i`th draw of the rate-gyro tests, in turn: a gyro reading
+/// 1 ± U(0.06, 0.12) times the yaw rate, a true gyro (nothing hidden), a
+/// gyro biased by ± U(0.2, 0.8) deg/s; each sign as likely.
 #[allow(dead_code)]
 pub fn draw_gyro(rng: &mut StdRng, i: usize) -> Hidden {
-    if !i.is_multiple_of(2) {
-        return Hidden::Nothing;
-    }
-    let size = rng.random_range(0.06..0.12);
-    Hidden::YawRateScale {
-        scale: if rng.random_bool(0.5) {
-            1.0 + size
-        } else {
-            1.0 - size
-        },
+    let sign = |rng: &mut StdRng| if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+    match i % 3 {
+        0 => {
+            let size = rng.random_range(0.06..0.12);
+            Hidden::YawRateScale {
+                scale: 1.0 + sign(rng) * size,
+            }
+        }
+        1 => Hidden::Nothing,
+        _ => {
+            let size = rng.random_range(0.2..0.8);
+            Hidden::YawRateBias {
+                bias_deg_s: sign(rng) * size,
+            }
+        }
     }
 }
 
@@ -111,6 +122,9 @@ pub fn judge(h: Hidden, r: &DiagnoseReport) -> Result<(), String> {
         Hidden::YawRateScale { scale } => {
             causes[0] == "yaw_rate_scale" && within(param(r, 0, "scale") - 1.0, scale - 1.0)
         }
+        Hidden::YawRateBias { bias_deg_s } => {
+            causes[0] == "yaw_rate_bias" && within(param(r, 0, "bias_deg_s"), bias_deg_s)
+        }
     };
     if ok {
         Ok(())
@@ -157,6 +171,7 @@ pub fn describe(h: Hidden) -> String {
             format!("{} loss {loss:.3}", if port { "port" } else { "starboard" })
         }
         Hidden::YawRateScale { scale } => format!("yaw-rate scale {scale:.4}"),
+        Hidden::YawRateBias { bias_deg_s } => format!("yaw-rate bias {bias_deg_s:+.3} deg/s"),
     }
 }
 
@@ -183,6 +198,7 @@ pub fn named(r: &DiagnoseReport) -> String {
                 "heading_offset" => format!("heading offset {:+.2} deg", p("offset_deg")),
                 "sog_scale" => format!("SOG scale {:.4}", p("scale")),
                 "yaw_rate_scale" => format!("yaw-rate scale {:.4}", p("scale")),
+                "yaw_rate_bias" => format!("yaw-rate bias {:+.3} deg/s", p("bias_deg_s")),
                 "gnss_latency" => format!("GNSS latency {:.3} s", p("latency_s")),
                 "thruster_loss" => format!(
                     "{} loss {:.3}",

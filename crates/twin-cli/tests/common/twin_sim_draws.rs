@@ -75,6 +75,10 @@ pub fn apply(sc: &mut Scenario, h: Hidden) {
             sc.sensors.yaw_rate.enabled = true;
             sc.sensors.yaw_rate.scale = scale;
         }
+        Hidden::YawRateBias { bias_deg_s } => {
+            sc.sensors.yaw_rate.enabled = true;
+            sc.sensors.yaw_rate.bias_deg_s = bias_deg_s;
+        }
     }
 }
 

@@ -43,11 +43,13 @@ pub enum Cause {
     /// The rate sensor reads the yaw rate scaled (a gyro's scale factor, a
     /// rate of turn its sensor damps).
     YawRateScale,
+    /// The rate sensor reads a yaw rate when there is none (a gyro's bias).
+    YawRateBias,
 }
 
 impl Cause {
     /// Every cause, in the order they are tried.
-    pub const ALL: [Cause; 12] = [
+    pub const ALL: [Cause; 13] = [
         Cause::Current,
         Cause::ThrusterLoss,
         Cause::HeadingOffset,
@@ -60,6 +62,7 @@ impl Cause {
         Cause::YawDamping,
         Cause::Mass,
         Cause::YawRateScale,
+        Cause::YawRateBias,
     ];
 
     /// The cause's declaration in the catalogue.
@@ -77,6 +80,7 @@ impl Cause {
             Cause::YawDamping => &YAW_DAMPING,
             Cause::Mass => &MASS,
             Cause::YawRateScale => &YAW_RATE_SCALE,
+            Cause::YawRateBias => &YAW_RATE_BIAS,
         }
     }
 
@@ -563,13 +567,17 @@ fn kinetic_with_positions(log: &LogKind) -> bool {
     log.base == BaseModel::Kinetic && log.has_position
 }
 
+/// A rate sensor's error is told against how the heading (or, without a
+/// heading sensor, the course over ground) turns.
+fn rate_sensor_told(log: &LogKind) -> bool {
+    log.has_yaw_rate && (log.has_heading || log.has_position)
+}
+
 static YAW_RATE_SCALE: CauseSpec = CauseSpec {
     name: "yaw_rate_scale",
     must_improve_forecast: false,
     sensor_error: true,
-    // Told against how the heading (or, without a heading sensor, the
-    // course over ground) turns.
-    applies: |log| log.has_yaw_rate && (log.has_heading || log.has_position),
+    applies: rate_sensor_told,
     // A rate gyro's scale factor is within a few per cent of one, a rate of
     // turn damped by its sensor reads low in a turn: beyond 20 % the rate is
     // not of this vessel's yaw.
@@ -581,6 +589,26 @@ static YAW_RATE_SCALE: CauseSpec = CauseSpec {
         set: |h, v| h.effects.yaw_rate_scale = v,
         shown: identity,
         practical: |acc| acc.min_yaw_rate_scale_error,
+        below_means: None,
+    }),
+};
+
+static YAW_RATE_BIAS: CauseSpec = CauseSpec {
+    name: "yaw_rate_bias",
+    must_improve_forecast: false,
+    sensor_error: true,
+    applies: rate_sensor_told,
+    // An uncalibrated MEMS gyro's bias is within a degree or two a second,
+    // a rate of turn's zero within a fraction of that: beyond 3 deg/s the
+    // rate is not of this vessel's yaw.
+    search: Search::Scalar(ScalarSearch {
+        parameter: "bias_deg_s",
+        bounds: (-3f64.to_radians(), 3f64.to_radians()),
+        grid: 6,
+        neutral: 0.0,
+        set: |h, v| h.effects.yaw_rate_bias_radps = v,
+        shown: f64::to_degrees,
+        practical: |acc| acc.min_yaw_rate_bias_radps,
         below_means: None,
     }),
 };
@@ -680,6 +708,22 @@ mod tests {
     }
 
     #[test]
+    fn a_yaw_rate_bias_is_searched_both_ways_and_biases_the_rate_sensor() {
+        let Search::Scalar(s) = &Cause::YawRateBias.spec().search else {
+            panic!("the yaw rate's bias is one scalar");
+        };
+        let (lo, hi) = s.bounds;
+        assert_eq!((lo, s.neutral), (-hi, 0.0), "either sign, centred on none");
+        assert!((hi.to_degrees() - 3.0).abs() < 1e-12);
+        let mut h = Hypothesis::nominal();
+        (s.set)(&mut h, 0.005);
+        assert_eq!(h.effects.yaw_rate_bias_radps, 0.005);
+        assert!(((s.shown)(0.005) - 0.005f64.to_degrees()).abs() < 1e-15);
+        assert_eq!(Cause::YawRateBias.name(), "yaw_rate_bias");
+        assert!(Cause::YawRateBias.spec().sensor_error);
+    }
+
+    #[test]
     fn applicability_follows_what_the_log_measured() {
         for kind in kinds() {
             let applies = |c: Cause| c.applies(&kind);
@@ -703,10 +747,13 @@ mod tests {
                 applies(Cause::LeverArm),
                 kind.has_position && (kind.base == BaseModel::Kinetic || kind.has_heading)
             );
-            assert_eq!(
-                applies(Cause::YawRateScale),
-                kind.has_yaw_rate && (kind.has_heading || kind.has_position)
-            );
+            for c in [Cause::YawRateScale, Cause::YawRateBias] {
+                assert_eq!(
+                    applies(c),
+                    kind.has_yaw_rate && (kind.has_heading || kind.has_position),
+                    "{c:?}"
+                );
+            }
             // Judged on the held-out position forecast.
             for c in [Cause::SurgeDamping, Cause::YawDamping, Cause::Mass] {
                 assert_eq!(

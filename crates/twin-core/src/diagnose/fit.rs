@@ -47,6 +47,8 @@ pub struct Acceptance {
     /// Smallest scale error of the rate sensor's yaw rate worth reporting
     /// (|scale - 1|).
     pub min_yaw_rate_scale_error: f64,
+    /// Smallest bias of the rate sensor worth reporting, rad/s.
+    pub min_yaw_rate_bias_radps: f64,
     /// Held-out NIS per degree of freedom above which, after the findings,
     /// the data are called unexplained.
     pub max_explained_nis_per_dof: f64,
@@ -61,7 +63,8 @@ impl Default for Acceptance {
     /// heading, 1 % of speed, 0.1 s of latency, 30 cm of antenna offset, 2 %
     /// of a log's speed (paddle wheels are rarely better calibrated), and a
     /// sideslip of 0.5 m/s per rad/s (a degree of drift in an ordinary turn),
-    /// 10 % of a profile's parameter, 2 % of a rate sensor's yaw rate. The
+    /// 10 % of a profile's parameter, 2 % of a rate sensor's yaw rate and
+    /// 0.1 deg/s of its bias (a degree of heading every ten seconds). The
     /// data are unexplained when the innovations after the findings are
     /// twice as large as the filter expects (NIS per degree of freedom
     /// above 2) or a component's mean is more than 10 standard errors from
@@ -82,6 +85,7 @@ impl Default for Acceptance {
             min_sideslip_m: 0.5,
             min_profile_scale_error: 0.1,
             min_yaw_rate_scale_error: 0.02,
+            min_yaw_rate_bias_radps: 0.1f64.to_radians(),
             max_explained_nis_per_dof: 2.0,
             max_explained_bias_z: 10.0,
         }
@@ -1419,6 +1423,10 @@ fn refit_jointly(
     changed
 }
 
+/// At most this many sweeps of [`refit_jointly`]: each one after the first
+/// follows a change of the findings in the sweep before.
+const MAX_REFIT_SWEEPS: usize = 3;
+
 /// How much worse (on the geometric mean over the horizons) the forecasts
 /// of one explanation of the data may be than another's and still count
 /// as holding: two explanations of the same motion forecast alike up to
@@ -2030,7 +2038,14 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     // findings it can be what the data show (the mass, once a current is
     // in, for a yaw damping that stood in for it).
     let applicable: Vec<Cause> = Cause::ALL.into_iter().filter(|c| c.applies(&log)).collect();
-    if refit_jointly(&ctx, &applicable, &mut model, &mut findings, &mut rejected) {
+    // A finding dropped or replaced in a sweep changes what the ones
+    // refitted before it in that sweep were fitted beside (a surge damping
+    // refitted beside a loss on both propellers that is then dropped as a
+    // profile error): another sweep refits them, until the findings settle.
+    for _ in 0..MAX_REFIT_SWEEPS {
+        if !refit_jointly(&ctx, &applicable, &mut model, &mut findings, &mut rejected) {
+            break;
+        }
         drop_redundant(&ctx, &mut model, &mut findings, &mut rejected);
     }
     refine_sizes_under_fitted_noise(&ctx, &mut model, &mut findings, &mut rejected);

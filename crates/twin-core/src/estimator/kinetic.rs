@@ -669,7 +669,7 @@ impl KineticBase {
         }
         if let Some(rate) = fix.yaw_rate_radps {
             // Likewise the yaw rate is the rate sensor's less its bias.
-            x0[idx::R] = (rate - x0[idx::YAW_RATE_BIAS]) / fx.yaw_rate_scale;
+            x0[idx::R] = fx.yaw_rate_of_reading(rate - x0[idx::YAW_RATE_BIAS]);
             p0[(idx::R, idx::R)] = r[(meas::YAW_RATE, meas::YAW_RATE)] + rate_bias_variance;
             p0[(idx::R, idx::YAW_RATE_BIAS)] = -rate_bias_variance;
             p0[(idx::YAW_RATE_BIAS, idx::R)] = -rate_bias_variance;

@@ -121,7 +121,7 @@ impl WaterBase {
             .unwrap_or(0.0);
         x0[idx::R] = fix
             .yaw_rate_radps
-            .map_or(0.0, |r| r / model.effects.yaw_rate_scale);
+            .map_or(0.0, |r| model.effects.yaw_rate_of_reading(r));
         let current_variance = match self.current {
             Term::Free => CURRENT_PRIOR_VARIANCE,
             Term::Off => 1e-12,

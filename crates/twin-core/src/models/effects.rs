@@ -1,7 +1,7 @@
 //! Sensor-side effects a model's measurement can include: where the GNSS
 //! antenna sits, a heading sensor's offset, a scale error of the reported
-//! speed over ground, GNSS latency, and a scale error of the rate sensor's
-//! yaw rate. They are the measurement half of
+//! speed over ground, GNSS latency, and a scale error and a bias of the rate
+//! sensor's yaw rate. They are the measurement half of
 //! `twin diagnose`'s catalogue of causes (the other half, the water current
 //! and the propellers' losses, are states and faults of the models).
 //!
@@ -14,7 +14,7 @@
 //! SOG      = s |velocity|                  (scale s)
 //! COG      = atan2(velocity) - L r         (the course L seconds ago)
 //! heading  = psi + d                       (offset d)
-//! yaw rate = g r                           (rate sensor's scale g)
+//! yaw rate = g r + b                       (rate sensor's scale g, bias b)
 //! ```
 //!
 //! to first order in `L`, and its Jacobian is taken numerically (central
@@ -34,6 +34,9 @@ pub struct SensorEffects {
     /// The rate sensor's yaw rate divided by the true one (a gyro's scale
     /// factor error, or a rate of turn damped by its sensor).
     pub yaw_rate_scale: f64,
+    /// The rate sensor's reading at rest, rad/s (a gyro's bias, a rate of
+    /// turn's zero offset).
+    pub yaw_rate_bias_radps: f64,
 }
 
 impl Default for SensorEffects {
@@ -44,6 +47,7 @@ impl Default for SensorEffects {
             sog_scale: 1.0,
             gnss_latency_s: 0.0,
             yaw_rate_scale: 1.0,
+            yaw_rate_bias_radps: 0.0,
         }
     }
 }
@@ -52,6 +56,16 @@ impl SensorEffects {
     /// True when there is no effect (the models then use analytic Jacobians).
     pub fn is_neutral(&self) -> bool {
         *self == Self::default()
+    }
+
+    /// What the rate sensor reads at the true yaw rate `yaw_rate_radps`.
+    pub fn yaw_rate_reading(&self, yaw_rate_radps: f64) -> f64 {
+        self.yaw_rate_scale * yaw_rate_radps + self.yaw_rate_bias_radps
+    }
+
+    /// The true yaw rate that makes the rate sensor read `reading_radps`.
+    pub fn yaw_rate_of_reading(&self, reading_radps: f64) -> f64 {
+        (reading_radps - self.yaw_rate_bias_radps) / self.yaw_rate_scale
     }
 }
 
@@ -157,5 +171,18 @@ mod tests {
             (m[2] - 2.1).abs() < 1e-12 && (m[4] - std::f64::consts::FRAC_PI_2 - 0.1).abs() < 1e-12
         );
         assert!(!fx.is_neutral() && SensorEffects::default().is_neutral());
+    }
+
+    #[test]
+    fn the_rate_sensors_reading_is_scaled_and_biased_and_inverts() {
+        let fx = SensorEffects {
+            yaw_rate_scale: 0.96,
+            yaw_rate_bias_radps: 0.01,
+            ..Default::default()
+        };
+        assert!((fx.yaw_rate_reading(0.1) - 0.106).abs() < 1e-15);
+        assert!((fx.yaw_rate_of_reading(fx.yaw_rate_reading(-0.2)) + 0.2).abs() < 1e-15);
+        assert_eq!(SensorEffects::default().yaw_rate_reading(0.1), 0.1);
+        assert!(!fx.is_neutral());
     }
 }

@@ -939,7 +939,7 @@ impl OtterTwin {
                 m[2],
                 m[3],
                 m[4] + x[idx::HEADING_BIAS],
-                self.effects.yaw_rate_scale * x[idx::R] + x[idx::YAW_RATE_BIAS],
+                self.effects.yaw_rate_reading(x[idx::R]) + x[idx::YAW_RATE_BIAS],
             ])
         };
         let predicted = h(x);
@@ -1454,6 +1454,7 @@ mod tests {
             sog_scale: 1.03,
             gnss_latency_s: 0.15,
             yaw_rate_scale: 0.96,
+            yaw_rate_bias_radps: 0.004,
         };
         let twin = OtterTwin::default();
         for (k, x) in [

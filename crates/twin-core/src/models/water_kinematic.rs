@@ -113,7 +113,7 @@ impl WaterKinematic {
             g[3],
             g[4],
             self.stw_scale * x[idx::U],
-            self.effects.yaw_rate_scale * x[idx::R],
+            self.effects.yaw_rate_reading(x[idx::R]),
         ])
     }
 }
