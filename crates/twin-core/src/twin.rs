@@ -35,7 +35,7 @@ use crate::decision::{
 use crate::estimator::seed::step_four;
 use crate::estimator::{
     CourseGate, KineticBase, KineticOptions, KineticReport, KineticState, Learnt, LocalFix,
-    SeedBase, SeedInputs, ShaftAccumulator, Surroundings,
+    RateSensorBias, SeedBase, SeedInputs, ShaftAccumulator, Surroundings, Term,
 };
 pub use crate::estimator::{KineticConfig, SeedConfig};
 use crate::geodesy::{LatLon, LocalFrame, NorthEast, wrap_two_pi};
@@ -417,13 +417,16 @@ impl Calibration {
     /// kept, its uncertainty widened for what may have changed meanwhile
     /// (the faults by their prior `fault_prior` spread over an hour, the
     /// current by 0.5 m/s over ten minutes, the heading sensor's offset by
-    /// its prior over a day; each at most by its prior).
+    /// its prior over a day, the rate sensor's bias, which changes each time
+    /// a gyro is switched on, by its prior over an hour; each at most by its
+    /// prior).
     fn aged(
         mut self,
         elapsed_s: f64,
         fault_prior: &[f64],
         current_prior: f64,
         bias_prior: f64,
+        rate_bias_prior: f64,
     ) -> Self {
         let share = |over_s: f64| (elapsed_s.max(0.0) / over_s).min(1.0);
         let p = self.theta.len();
@@ -435,6 +438,9 @@ impl Calibration {
             s.covariance[0][0] += current_prior * share(600.0);
             s.covariance[1][1] += current_prior * share(600.0);
             s.covariance[2][2] += bias_prior * share(86_400.0);
+            if let Some(g) = &mut s.yaw_rate_bias {
+                g.variance += rate_bias_prior * share(3600.0);
+            }
         }
         self
     }
@@ -1097,12 +1103,19 @@ impl VesselTwin {
         let (source, theta, covariance, held, surroundings) = if let Some(k) = &self.kinetic.state {
             let (cn, ce, b) = (idx::CURRENT_NORTH, idx::CURRENT_EAST, idx::HEADING_BIAS);
             let slots = [cn, ce, b];
+            let g = idx::YAW_RATE_BIAS;
             let surroundings = Surroundings {
                 current_mps: [k.x[cn], k.x[ce]],
                 heading_bias_rad: k.x[b],
                 covariance: std::array::from_fn(|i| {
                     std::array::from_fn(|j| k.p[(slots[i], slots[j])])
                 }),
+                yaw_rate_bias: (self.kinetic.base.options().yaw_rate_bias == Term::Free).then(
+                    || RateSensorBias {
+                        radps: k.x[g],
+                        variance: k.p[(g, g)],
+                    },
+                ),
             };
             (
                 FaultSource::Kinetic,
@@ -1167,6 +1180,7 @@ impl VesselTwin {
             &fault_prior,
             k.initial_current_sigma_mps.powi(2),
             k.initial_heading_bias_sigma_rad.powi(2),
+            k.initial_yaw_rate_bias_sigma_radps.powi(2),
         ))
     }
 
@@ -1569,6 +1583,68 @@ mod tests {
                 "fault {i}"
             );
         }
+    }
+
+    /// The rate sensor's bias the extended twin learnt is in its
+    /// calibration, and a twin restored from it starts from it: the bias
+    /// and its variance, not the prior's 0.5 deg/s; a gap keeps it, its
+    /// variance widened; a twin that holds the bias at zero saves none.
+    #[test]
+    fn the_rate_sensors_learnt_bias_is_kept_and_restored() {
+        let bias_radps = 0.3f64.to_radians();
+        let propellers = |t: f64| PropellerSpeeds {
+            time_s: t - 0.1,
+            port_radps: 70.0,
+            starboard_radps: 70.0,
+        };
+        let biased = |t: f64, north_m: f64| GnssFix {
+            yaw_rate_radps: Some(bias_radps),
+            ..fix(t, north_m)
+        };
+        let run = |config: TwinConfig| {
+            let mut twin = VesselTwin::new(config).unwrap();
+            for k in 0..600 {
+                let t = 1000.0 + 0.2 * k as f64;
+                twin.on_propellers(&propellers(t)).unwrap();
+                twin.on_gnss(&biased(t, 0.3 * k as f64)).unwrap();
+            }
+            twin
+        };
+        let config = TwinConfig::default();
+        let prior = config.kinetic.initial_yaw_rate_bias_sigma_radps.powi(2);
+        let twin = run(config);
+        let learnt = twin.calibration().unwrap();
+        let g = learnt.surroundings.unwrap().yaw_rate_bias.unwrap();
+        assert!((g.radps - bias_radps).abs() < 0.05f64.to_radians(), "{g:?}");
+        assert!(g.variance < 0.01 * prior, "{g:?}");
+
+        let mut restored = VesselTwin::new(config).unwrap();
+        restored.restore(learnt.clone());
+        restored.on_propellers(&propellers(2000.0)).unwrap();
+        restored.on_gnss(&biased(2000.0, 0.0)).unwrap();
+        let k = restored.kinetic.state.as_ref().unwrap();
+        assert_eq!(k.x[idx::YAW_RATE_BIAS], g.radps);
+        assert_eq!(k.p[(idx::YAW_RATE_BIAS, idx::YAW_RATE_BIAS)], g.variance);
+        // The yaw rate starts as the reading less the learnt bias.
+        assert!(k.x[idx::R].abs() < 0.05f64.to_radians(), "{}", k.x[idx::R]);
+
+        // Half an hour later: the bias kept, its variance half the prior's wider.
+        let aged = twin.carried_over(learnt.time_s + 1800.0).unwrap();
+        let a = aged.surroundings.unwrap().yaw_rate_bias.unwrap();
+        assert_eq!(a.radps, g.radps);
+        assert!((a.variance - g.variance - 0.5 * prior).abs() < 1e-12 * prior);
+
+        let mut held = config;
+        held.kinetic.estimate_yaw_rate_bias = false;
+        let twin = run(held);
+        assert_eq!(
+            twin.calibration()
+                .unwrap()
+                .surroundings
+                .unwrap()
+                .yaw_rate_bias,
+            None
+        );
     }
 
     /// Both estimators running after `fixes` fixes, with propeller speeds

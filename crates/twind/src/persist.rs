@@ -1,6 +1,7 @@
 //! Per-vessel calibration files: what the twin has learnt (the fault
-//! estimate, its covariance, the anti-windup memory, the current and the
-//! heading sensor's offset it estimated, and the decisions),
+//! estimate, its covariance, the anti-windup memory, the current, the
+//! heading sensor's offset and the rate sensor's bias it estimated, and the
+//! decisions),
 //! saved periodically and on shutdown, restored when the vessel's twin
 //! starts, so a restart does not re-learn for minutes.
 //!
@@ -28,7 +29,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 use twin_core::decision::{ThrusterDecision, ThrusterStatus};
-use twin_core::estimator::Surroundings;
+use twin_core::estimator::{RateSensorBias, Surroundings};
 use twin_core::twin::{Calibration, FaultSource};
 use twin_wire::profile::VesselProfile;
 
@@ -50,7 +51,7 @@ pub struct CalibrationFile {
     pub held_information: Vec<f64>,
     /// The current `[north, east]` (m/s) and the heading sensor's offset
     /// (rad) the extended twin estimated, with their covariance (row-major
-    /// 3 x 3).
+    /// 3 x 3), and the rate sensor's bias with its variance.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub surroundings: Option<SurroundingsFile>,
     /// Status per thruster.
@@ -73,6 +74,20 @@ pub struct SurroundingsFile {
     pub heading_bias_rad: f64,
     /// Covariance of `[current north, current east, heading bias]`, row-major.
     pub covariance: [f64; 9],
+    /// The rate sensor's bias, where the twin estimated it (absent from
+    /// files saved before it was kept: the bias is then learnt from its
+    /// prior).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub yaw_rate_bias: Option<RateSensorBiasFile>,
+}
+
+/// The rate sensor's bias in a calibration file.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RateSensorBiasFile {
+    /// What the rate sensor reads when the vessel does not turn, rad/s.
+    pub radps: f64,
+    /// Its variance, (rad/s)^2.
+    pub variance: f64,
 }
 
 /// Why a calibration could not be loaded or saved.
@@ -150,6 +165,10 @@ impl CalibrationFile {
                 current_mps: s.current_mps,
                 heading_bias_rad: s.heading_bias_rad,
                 covariance: std::array::from_fn(|k| s.covariance[k / 3][k % 3]),
+                yaw_rate_bias: s.yaw_rate_bias.map(|g| RateSensorBiasFile {
+                    radps: g.radps,
+                    variance: g.variance,
+                }),
             }),
             status: c.decisions.map(|d| status_name(d.status)),
             onset_time_s: c.decisions.map(|d| d.onset_time_s),
@@ -173,6 +192,7 @@ impl CalibrationFile {
                 .iter()
                 .chain(s.covariance.iter())
                 .chain([&s.heading_bias_rad])
+                .chain(s.yaw_rate_bias.iter().flat_map(|g| [&g.radps, &g.variance]))
         });
         let numbers = self
             .theta
@@ -190,6 +210,11 @@ impl CalibrationFile {
         }
         if !positive_semi_definite(&self.theta_covariance, p) {
             return Err("covariance is not positive semi-definite".into());
+        }
+        if let Some(g) = self.surroundings.as_ref().and_then(|s| s.yaw_rate_bias)
+            && g.variance < 0.0
+        {
+            return Err("the rate sensor's bias has a negative variance".into());
         }
         let decision = |i: usize| -> Result<ThrusterDecision, String> {
             Ok(ThrusterDecision {
@@ -209,6 +234,10 @@ impl CalibrationFile {
                 heading_bias_rad: s.heading_bias_rad,
                 covariance: std::array::from_fn(|i| {
                     std::array::from_fn(|j| s.covariance[3 * i + j])
+                }),
+                yaw_rate_bias: s.yaw_rate_bias.map(|g| RateSensorBias {
+                    radps: g.radps,
+                    variance: g.variance,
                 }),
             }),
             decisions,
@@ -403,6 +432,10 @@ mod tests {
                 current_mps: [0.1, -0.2],
                 heading_bias_rad: 0.05,
                 covariance: [[1e-3, 1e-4, 0.0], [1e-4, 2e-3, 0.0], [0.0, 0.0, 1e-4]],
+                yaw_rate_bias: Some(RateSensorBias {
+                    radps: 0.004,
+                    variance: 2e-8,
+                }),
             }),
             decisions: [
                 ThrusterDecision {
@@ -487,6 +520,31 @@ mod tests {
         f.theta_covariance = vec![1e-4, 0.0, 0.0, 1e-4];
         f.held_information = vec![1.0];
         assert!(f.to_calibration().is_err());
+    }
+
+    /// A file saved before the rate sensor's bias was kept loads, with the
+    /// bias to be learnt from its prior; a bias that is not a number, or a
+    /// negative variance, is refused.
+    #[test]
+    fn the_rate_sensors_bias_is_optional_and_checked() {
+        let f = CalibrationFile::new("v", &calibration(), OTTER);
+        let mut json: serde_json::Value = serde_json::to_value(&f).unwrap();
+        assert_eq!(json["surroundings"]["yaw_rate_bias"]["radps"], 0.004);
+        json["surroundings"]
+            .as_object_mut()
+            .unwrap()
+            .remove("yaw_rate_bias");
+        let old: CalibrationFile = serde_json::from_value(json).unwrap();
+        let restored = old.to_calibration().unwrap();
+        let s = restored.surroundings.unwrap();
+        assert_eq!(s.yaw_rate_bias, None);
+        assert_eq!(s.heading_bias_rad, 0.05);
+        for (radps, variance) in [(f64::NAN, 1e-8), (0.0, f64::INFINITY), (0.0, -1e-8)] {
+            let mut bad = f.clone();
+            bad.surroundings.as_mut().unwrap().yaw_rate_bias =
+                Some(RateSensorBiasFile { radps, variance });
+            assert!(bad.to_calibration().is_err(), "{radps} {variance}");
+        }
     }
 
     /// A calibration learnt with one profile is not restored on another:

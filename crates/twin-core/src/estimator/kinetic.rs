@@ -552,7 +552,8 @@ impl KineticBase {
     }
 
     /// Puts what was learnt of the surroundings (the current, the heading
-    /// sensor's offset) into a prior, where the terms estimate them.
+    /// sensor's offset, the rate sensor's bias) into a prior, where the
+    /// terms estimate them.
     fn restore_surroundings(
         &self,
         learnt: &Surroundings,
@@ -584,15 +585,18 @@ impl KineticBase {
             let c = learnt.covariance;
             p0[(idx::U, idx::U)] = 0.3f64.powi(2) + c[0][0].max(c[1][1]);
         }
+        if let (Term::Free, Some(g)) = (self.options.yaw_rate_bias, learnt.yaw_rate_bias) {
+            x0[idx::YAW_RATE_BIAS] = g.radps;
+            p0[(idx::YAW_RATE_BIAS, idx::YAW_RATE_BIAS)] = g.variance;
+        }
     }
 
     /// The first estimate from a fix: position as measured; heading from the
     /// heading sensor (less its offset, if the effects have one), else the
     /// course; surge speed from the speed over ground (less its scale); sway
     /// zero; yaw rate from the rate sensor (less its bias and scale), else
-    /// zero; the current and the heading sensor's offset as their terms
-    /// say, or as `restored` learnt them; the rate sensor's bias as its term
-    /// says (a calibration does not keep it). The
+    /// zero; the current, the heading sensor's offset and the rate sensor's
+    /// bias as their terms say, or as `restored` learnt them. The
     /// faults start from `restored` where given (estimate, covariance and
     /// anti-windup memory), else from none with the configured covariance,
     /// or at the values held.
@@ -667,6 +671,7 @@ impl KineticBase {
             p0[(idx::PSI, idx::HEADING_BIAS)] = -bias_variance;
             p0[(idx::HEADING_BIAS, idx::PSI)] = -bias_variance;
         }
+        let rate_bias_variance = p0[(idx::YAW_RATE_BIAS, idx::YAW_RATE_BIAS)];
         if let Some(rate) = fix.yaw_rate_radps {
             // Likewise the yaw rate is the rate sensor's less its bias.
             x0[idx::R] = fx.yaw_rate_of_reading(rate - x0[idx::YAW_RATE_BIAS]);

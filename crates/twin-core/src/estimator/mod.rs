@@ -129,11 +129,13 @@ pub struct Learnt<const P: usize> {
     pub covariance: nalgebra::SMatrix<f64, P, P>,
     /// The information held per fault (the anti-windup memory).
     pub held_information: nalgebra::SVector<f64, P>,
-    /// The water current and the heading sensor's offset.
+    /// The water current, the heading sensor's offset and the rate sensor's
+    /// bias.
     pub surroundings: Option<Surroundings>,
 }
 
-/// What the extended twin learnt of the water and of its heading sensor.
+/// What the extended twin learnt of the water and of its heading and rate
+/// sensors.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Surroundings {
     /// Water current `[north, east]`, m/s.
@@ -142,4 +144,18 @@ pub struct Surroundings {
     pub heading_bias_rad: f64,
     /// Covariance of `[current north, current east, heading bias]`.
     pub covariance: [[f64; 3]; 3],
+    /// The rate sensor's bias, where the twin estimated it (`None` where it
+    /// was held, or in a calibration saved before it was kept).
+    pub yaw_rate_bias: Option<RateSensorBias>,
+}
+
+/// A rate sensor's bias as the extended twin learnt it: what it reads when
+/// the vessel does not turn.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RateSensorBias {
+    /// The bias, rad/s.
+    pub radps: f64,
+    /// Its variance, (rad/s)^2 (its covariance with the other surroundings
+    /// is not kept).
+    pub variance: f64,
 }
