@@ -369,6 +369,27 @@ pub enum Term<const K: usize> {
     Fixed([f64; K]),
 }
 
+/// Starts the states `slots` of a term: at the values held, for
+/// `Term::Fixed`; returns their prior variance, `free_sigma` squared where
+/// the filter estimates them, else [`HELD_VARIANCE`].
+fn start_term<const K: usize>(
+    term: Term<K>,
+    slots: [usize; K],
+    free_sigma: f64,
+    x0: &mut State,
+) -> f64 {
+    match term {
+        Term::Free => free_sigma.powi(2),
+        Term::Off => HELD_VARIANCE,
+        Term::Fixed(values) => {
+            for (slot, value) in slots.into_iter().zip(values) {
+                x0[slot] = value;
+            }
+            HELD_VARIANCE
+        }
+    }
+}
+
 /// What the kinetic base estimates and how it measures.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KineticOptions {
@@ -611,31 +632,24 @@ impl KineticBase {
             .or(fix.cog_rad)
             .unwrap_or(0.0);
         x0[idx::U] = fix.sog_mps.unwrap_or(0.0) / fx.sog_scale;
-        let current_variance = match self.options.current {
-            Term::Free => self.initial_current_sigma_mps.powi(2),
-            Term::Off => HELD_VARIANCE,
-            Term::Fixed(c) => {
-                x0[idx::CURRENT_NORTH] = c[0];
-                x0[idx::CURRENT_EAST] = c[1];
-                HELD_VARIANCE
-            }
-        };
-        let bias_variance = match self.options.heading_bias {
-            Term::Free => self.initial_heading_bias_sigma_rad.powi(2),
-            Term::Off => HELD_VARIANCE,
-            Term::Fixed([b]) => {
-                x0[idx::HEADING_BIAS] = b;
-                HELD_VARIANCE
-            }
-        };
-        let rate_bias_variance = match self.options.yaw_rate_bias {
-            Term::Free => self.initial_yaw_rate_bias_sigma_radps.powi(2),
-            Term::Off => HELD_VARIANCE,
-            Term::Fixed([b]) => {
-                x0[idx::YAW_RATE_BIAS] = b;
-                HELD_VARIANCE
-            }
-        };
+        let current_variance = start_term(
+            self.options.current,
+            [idx::CURRENT_NORTH, idx::CURRENT_EAST],
+            self.initial_current_sigma_mps,
+            &mut x0,
+        );
+        let bias_variance = start_term(
+            self.options.heading_bias,
+            [idx::HEADING_BIAS],
+            self.initial_heading_bias_sigma_rad,
+            &mut x0,
+        );
+        let rate_bias_variance = start_term(
+            self.options.yaw_rate_bias,
+            [idx::YAW_RATE_BIAS],
+            self.initial_yaw_rate_bias_sigma_radps,
+            &mut x0,
+        );
         let r = &self.filter.config.measurement_noise;
         // Not knowing the sensor's offset, the heading is as uncertain as
         // it (set below, once the offset's prior is known).
