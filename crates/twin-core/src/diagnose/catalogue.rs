@@ -241,7 +241,7 @@ pub(super) struct ScalarSearch {
     /// The physical bounds, in the hypothesis' unit; the search runs
     /// within them.
     pub bounds: (f64, f64),
-    /// Grid points before the golden-section refinement.
+    /// Grid steps before the parabolic refinement (`fit::minimise_1d`).
     pub grid: usize,
     /// The value of "no effect".
     pub neutral: f64,

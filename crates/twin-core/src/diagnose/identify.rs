@@ -11,8 +11,8 @@
 //! the current and the heading sensor's offset estimated (as the live twin
 //! estimates them), the velocities' process noise that of the water
 //! alone, so that a wrong profile shows in the innovations. The search runs
-//! on the logarithm of each scale, one parameter at a time (a grid, then a
-//! golden-section refinement), in rounds until no scale moves by more than
+//! on the logarithm of each scale, one parameter at a time (a grid, then
+//! two parabolic steps), in rounds until no scale moves by more than
 //! `tolerance`; each parameter's uncertainty is the likelihood's curvature
 //! (the inverse of the Hessian's diagonal block, so that two parameters the
 //! trial cannot tell apart are both reported as uncertain).
