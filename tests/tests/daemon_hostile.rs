@@ -502,8 +502,9 @@ async fn a_restart_mid_trial_ends_where_an_uninterrupted_run_ends() {
     // not excited). The estimate's path matters at the 0.01 level on its
     // own: this trial without any one of its fixes 700, 703 or 710 ends
     // 0.009, 0.006 and 0.0003 from the whole trial's port loss; the
-    // restart, which starts the velocities, the heading and the current
-    // afresh, ends some 0.03 from it.
+    // restart, which starts the velocities and the heading afresh (the
+    // current and the sensors' offset and bias come back from the
+    // calibration), ends some 0.03 from it.
     let never_stopped = offline(&msgs);
     let report = never_stopped.fault_report(never_stopped.state_report().unwrap().time_s);
     let port = &report.thrusters[0];
