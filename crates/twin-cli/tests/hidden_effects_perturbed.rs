@@ -55,7 +55,8 @@ fn run_draw(i: usize, h: Hidden, p: Option<Perturbation>, seed: u64, gyro: bool)
         perturb(&mut spec, p);
         sc.vessel = Some(spec);
     }
-    let r = diagnose_scenario(&sc, &format!("draw-{i}"));
+    let kind = if gyro { "gyro-draw" } else { "draw" };
+    let r = diagnose_scenario(&sc, &format!("{kind}-{i}"));
     let verdict = judge_on_vessel(h, p, &r);
     (i, h, p, verdict, named(&r))
 }

@@ -2,6 +2,10 @@
 //! base trial, the seeded draw of one hidden effect, its planting in the
 //! scenario, and the diagnosis of the simulated log (read as a user's log
 //! would be; the truth is never an input).
+//!
+//! With `TWIN_KEEP_DRAWS=DIR` in the environment, each simulated log is
+//! also written to `DIR/{name}.jsonl`, so that a draw can be run again
+//! with `twin diagnose` (or timed) as a user's log.
 
 use std::io::Cursor;
 use std::path::Path;
@@ -82,8 +86,14 @@ pub fn apply(sc: &mut Scenario, h: Hidden) {
     }
 }
 
+/// The diagnosis of `sc`'s simulated log, read as a user's log under
+/// `name` (also its file's name under `TWIN_KEEP_DRAWS`).
 pub fn diagnose_scenario(sc: &Scenario, name: &str) -> DiagnoseReport {
     let (bytes, _) = simulate_to_bytes(sc, OutputFormat::JsonLines).unwrap();
+    if let Some(dir) = std::env::var_os("TWIN_KEEP_DRAWS") {
+        let path = Path::new(&dir).join(format!("{name}.jsonl"));
+        std::fs::write(&path, &bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    }
     let log = load(Cursor::new(bytes), Path::new(name), SourceChoice::Best).unwrap();
     diagnose_loaded(
         name,
