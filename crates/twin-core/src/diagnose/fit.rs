@@ -435,7 +435,7 @@ pub(super) fn minimise_1d(f: &dyn Fn(f64) -> f64, lo: f64, hi: f64, grid: usize)
     let step = (hi - lo) / grid as f64;
     let h = step / 4.0;
     let at = |i: usize| lo + step * i as f64;
-    let values: Vec<f64> = (0..=grid).map(|i| f(at(i))).collect();
+    let values = on_grid(f, lo, step, grid);
     let b = best_index(&values);
     if b == 0 || b == grid || !(values[b - 1].is_finite() && values[b + 1].is_finite()) {
         return golden_from_grid(f, lo, hi, at(b), step);
@@ -451,13 +451,13 @@ pub(super) fn minimise_1d(f: &dyn Fn(f64) -> f64, lo: f64, hi: f64, grid: usize)
     if !(CURVATURE_AGREEMENT.contains(&narrow_over_wide)) {
         return golden_from_grid(f, lo, hi, x0, step);
     }
-    let mut known = vec![(bracket.0, values[b - 1]), (bracket.1, values[b + 1])];
-    known.extend(stencil);
+    let mut known = wide.to_vec();
+    known.extend([stencil[0], stencil[2]]);
     for _ in 0..2 {
-        if let Some(x) = parabola_vertex(&lowest_three(&known))
+        if let Some(x) =
+            parabola_vertex(&lowest_three(&known)).map(|x| x.clamp(bracket.0, bracket.1))
             && known.iter().all(|(k, _)| *k != x)
         {
-            let x = x.clamp(bracket.0, bracket.1);
             known.push((x, f(x)));
         }
     }
@@ -519,8 +519,13 @@ pub(super) fn minimise_1d_golden(
     grid: usize,
 ) -> (f64, f64) {
     let step = (hi - lo) / grid as f64;
-    let values: Vec<f64> = (0..=grid).map(|i| f(lo + step * i as f64)).collect();
+    let values = on_grid(f, lo, step, grid);
     golden_from_grid(f, lo, hi, lo + step * best_index(&values) as f64, step)
+}
+
+/// `f` at the `grid + 1` points from `lo`, `step` apart.
+fn on_grid(f: &dyn Fn(f64) -> f64, lo: f64, step: f64, grid: usize) -> Vec<f64> {
+    (0..=grid).map(|i| f(lo + step * i as f64)).collect()
 }
 
 /// The index of the first least of `values` (0 where none is finite).
