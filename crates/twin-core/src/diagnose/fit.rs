@@ -438,7 +438,7 @@ pub(super) fn minimise_1d(f: &dyn Fn(f64) -> f64, lo: f64, hi: f64, grid: usize)
     let values = on_grid(f, lo, step, grid);
     let b = best_index(&values);
     if b == 0 || b == grid || !(values[b - 1].is_finite() && values[b + 1].is_finite()) {
-        return golden_from_grid(f, lo, hi, at(b), step);
+        return golden_from_grid(f, lo, hi, (at(b), values[b]), step);
     }
     let (x0, bracket) = (at(b), (at(b - 1), at(b + 1)));
     let stencil = [(x0 - h, f(x0 - h)), (x0, values[b]), (x0 + h, f(x0 + h))];
@@ -449,7 +449,7 @@ pub(super) fn minimise_1d(f: &dyn Fn(f64) -> f64, lo: f64, hi: f64, grid: usize)
     ];
     let narrow_over_wide = parabola_curvature(&stencil) / parabola_curvature(&wide);
     if !(CURVATURE_AGREEMENT.contains(&narrow_over_wide)) {
-        return golden_from_grid(f, lo, hi, x0, step);
+        return golden_from_grid(f, lo, hi, (x0, values[b]), step);
     }
     let mut known = wide.to_vec();
     known.extend([stencil[0], stencil[2]]);
@@ -520,7 +520,8 @@ pub(super) fn minimise_1d_golden(
 ) -> (f64, f64) {
     let step = (hi - lo) / grid as f64;
     let values = on_grid(f, lo, step, grid);
-    golden_from_grid(f, lo, hi, lo + step * best_index(&values) as f64, step)
+    let b = best_index(&values);
+    golden_from_grid(f, lo, hi, (lo + step * b as f64, values[b]), step)
 }
 
 /// `f` at the `grid + 1` points from `lo`, `step` apart.
@@ -540,18 +541,28 @@ fn best_index(values: &[f64]) -> usize {
 }
 
 /// Golden-section search within a grid step of the best grid point
-/// `best_x` (seven steps), and the standard deviation of the curvature
-/// there.
+/// `best` (its place and value; seven steps), and the standard deviation
+/// of the curvature there. The result is never worse than `best`: where
+/// the likelihood is not unimodal within the bracket (it can jump by
+/// hundreds between values 0.01 apart on a real log), the search's point
+/// can be, and the best grid point stands.
 fn golden_from_grid(
     f: &dyn Fn(f64) -> f64,
     lo: f64,
     hi: f64,
-    best_x: f64,
+    best: (f64, f64),
     step: f64,
 ) -> (f64, f64) {
-    let x = golden_section(f, (best_x - step).max(lo), (best_x + step).min(hi), 7);
+    let (best_x, best_f) = best;
+    let searched = golden_section(f, (best_x - step).max(lo), (best_x + step).min(hi), 7);
+    let at_searched = f(searched);
+    let (x, fx) = if at_searched <= best_f {
+        (searched, at_searched)
+    } else {
+        best
+    };
     let h = step / 4.0;
-    let curvature = (f(x + h) - 2.0 * f(x) + f(x - h)) / (h * h);
+    let curvature = (f(x + h) - 2.0 * fx + f(x - h)) / (h * h);
     (x, sd_of_curvature(curvature))
 }
 
@@ -2445,6 +2456,24 @@ mod tests {
         let (x, _) = minimise_1d(&smooth, lo, hi, grid);
         let (x_golden, _) = minimise_1d_golden(&smooth, lo, hi, grid);
         assert!((x - 0.7).abs() < (x_golden - 0.7).abs(), "{x} {x_golden}");
+    }
+
+    /// Where the likelihood jumps within the golden section's bracket (as
+    /// the latency's does on a log with standstills), the search's point
+    /// can be worse than the best grid point; the grid point then stands.
+    #[test]
+    fn a_search_never_ends_worse_than_its_best_grid_point() {
+        // Lowest at the range's edge, every other point worse, with jumps of
+        // hundreds between values 0.005 apart.
+        let jagged = |x: f64| {
+            if x == 0.0 {
+                0.0
+            } else {
+                20.0 * x.abs() + 400.0 * (x * 700.0).sin().powi(2)
+            }
+        };
+        assert_eq!(minimise_1d(&jagged, 0.0, 2.0, 6).0, 0.0);
+        assert_eq!(minimise_1d_golden(&jagged, 0.0, 2.0, 6).0, 0.0);
     }
 
     fn fitted(cause: Cause, size: f64, z: f64) -> Fitted {

@@ -68,7 +68,7 @@ use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
 use crate::geodesy::wrap_pi;
 use crate::linalg::{Pattern, mul, mul_sparse_left};
 use crate::model::{Model, Observation, Transition};
-use crate::models::effects::{Kinematics, SensorEffects, gnss_measurement};
+use crate::models::effects::{Kinematics, SensorEffects, gnss_measurement_linearised, kin};
 use crate::trig;
 use crate::vessel::VesselParams;
 
@@ -920,100 +920,49 @@ impl OtterTwin {
         }
     }
 
-    /// The measurement with effects, its Jacobian by forward differences.
-    fn observe_with_effects(&self, x: &State) -> Observation<STATES, MEASUREMENTS> {
-        let h = |x: &State| {
-            let (s, c) = trig::sin_cos(x[idx::PSI]);
-            let k = Kinematics {
-                north_m: x[idx::NORTH],
-                east_m: x[idx::EAST],
-                heading_rad: x[idx::PSI],
-                yaw_rate_radps: x[idx::R],
-                ground_north_mps: c * x[idx::U] - s * x[idx::V] + x[idx::CURRENT_NORTH],
-                ground_east_mps: s * x[idx::U] + c * x[idx::V] + x[idx::CURRENT_EAST],
-            };
-            let m = gnss_measurement(&k, &self.effects);
-            SVector::<f64, MEASUREMENTS>::from([
-                m[0],
-                m[1],
-                m[2],
-                m[3],
-                m[4] + x[idx::HEADING_BIAS],
-                self.effects.yaw_rate_reading(x[idx::R]) + x[idx::YAW_RATE_BIAS],
-            ])
-        };
-        let predicted = h(x);
-        let mut jacobian = SMatrix::<f64, MEASUREMENTS, STATES>::zeros();
-        // Forward differences: the Jacobian only steers the gains, and the
-        // measurement is smooth; one evaluation per column.
-        for j in 0..STATES {
-            let step = 1e-7 * (1.0 + x[j].abs());
-            let mut xp = *x;
-            xp[j] += step;
-            let hp = h(&xp);
-            let mut d = (hp - predicted) / step;
-            d[meas::COG] = wrap_pi(hp[meas::COG] - predicted[meas::COG]) / step;
-            d[meas::HEADING] = wrap_pi(hp[meas::HEADING] - predicted[meas::HEADING]) / step;
-            jacobian.set_column(j, &d);
-        }
-        Observation {
-            predicted,
-            jacobian,
-        }
-    }
-
-    /// The measurement model.
+    /// The measurement model, with the sensors' effects, and its Jacobian.
     fn observe_state(&self, x: &State) -> Observation<STATES, MEASUREMENTS> {
-        if !self.effects.is_neutral() {
-            return self.observe_with_effects(x);
-        }
         let (psi, u, v) = (x[idx::PSI], x[idx::U], x[idx::V]);
         let (s, c) = trig::sin_cos(psi);
-        let vn = c * u - s * v + x[idx::CURRENT_NORTH];
-        let ve = s * u + c * v + x[idx::CURRENT_EAST];
-        // Speeds are far from overflow and underflow: no need of `hypot`'s
-        // scaling (a C library call).
-        let sog = (vn * vn + ve * ve).sqrt();
-        let sog_safe = sog.max(1e-3);
-        let mut h = SMatrix::<f64, MEASUREMENTS, STATES>::zeros();
-        h[(meas::NORTH, idx::NORTH)] = 1.0;
-        h[(meas::EAST, idx::EAST)] = 1.0;
-        h[(meas::HEADING, idx::PSI)] = 1.0;
-        h[(meas::HEADING, idx::HEADING_BIAS)] = 1.0;
-        h[(meas::YAW_RATE, idx::R)] = 1.0;
-        h[(meas::YAW_RATE, idx::YAW_RATE_BIAS)] = 1.0;
-        // d vn / d x and d ve / d x over (psi, u, v, cn, ce).
-        let dvn = [
-            (idx::PSI, -s * u - c * v),
-            (idx::U, c),
-            (idx::V, -s),
-            (idx::CURRENT_NORTH, 1.0),
-        ];
-        let dve = [
-            (idx::PSI, c * u - s * v),
-            (idx::U, s),
-            (idx::V, c),
-            (idx::CURRENT_EAST, 1.0),
-        ];
-        for (j, d) in dvn {
-            h[(meas::SOG, j)] += vn / sog_safe * d;
-            h[(meas::COG, j)] += -ve / (sog_safe * sog_safe) * d;
+        let k = Kinematics {
+            north_m: x[idx::NORTH],
+            east_m: x[idx::EAST],
+            heading_rad: psi,
+            yaw_rate_radps: x[idx::R],
+            ground_north_mps: c * u - s * v + x[idx::CURRENT_NORTH],
+            ground_east_mps: s * u + c * v + x[idx::CURRENT_EAST],
+        };
+        let (m, dm_dk) = gnss_measurement_linearised(&k, &self.effects);
+        // The chain through the kinematics: the ground velocity depends on
+        // the heading, the velocities through the water and the current.
+        let dgn_dpsi = -s * u - c * v;
+        let dge_dpsi = c * u - s * v;
+        let mut jacobian = SMatrix::<f64, MEASUREMENTS, STATES>::zeros();
+        for (row, dm) in dm_dk.iter().enumerate() {
+            let (dgn, dge) = (dm[kin::GROUND_NORTH], dm[kin::GROUND_EAST]);
+            jacobian[(row, idx::NORTH)] = dm[kin::NORTH];
+            jacobian[(row, idx::EAST)] = dm[kin::EAST];
+            jacobian[(row, idx::PSI)] = dm[kin::HEADING] + dgn * dgn_dpsi + dge * dge_dpsi;
+            jacobian[(row, idx::U)] = dgn * c + dge * s;
+            jacobian[(row, idx::V)] = dge * c - dgn * s;
+            jacobian[(row, idx::R)] = dm[kin::YAW_RATE];
+            jacobian[(row, idx::CURRENT_NORTH)] = dgn;
+            jacobian[(row, idx::CURRENT_EAST)] = dge;
         }
-        for (j, d) in dve {
-            h[(meas::SOG, j)] += ve / sog_safe * d;
-            h[(meas::COG, j)] += vn / (sog_safe * sog_safe) * d;
-        }
+        jacobian[(meas::HEADING, idx::HEADING_BIAS)] = 1.0;
+        jacobian[(meas::YAW_RATE, idx::R)] = self.effects.yaw_rate_scale;
+        jacobian[(meas::YAW_RATE, idx::YAW_RATE_BIAS)] = 1.0;
         let predicted = SVector::<f64, MEASUREMENTS>::from([
-            x[idx::NORTH],
-            x[idx::EAST],
-            sog,
-            ve.atan2(vn),
-            psi + x[idx::HEADING_BIAS],
-            x[idx::R] + x[idx::YAW_RATE_BIAS],
+            m[0],
+            m[1],
+            m[2],
+            m[3],
+            m[4] + x[idx::HEADING_BIAS],
+            self.effects.yaw_rate_reading(x[idx::R]) + x[idx::YAW_RATE_BIAS],
         ]);
         Observation {
             predicted,
-            jacobian: h,
+            jacobian,
         }
     }
 }
@@ -1378,15 +1327,9 @@ mod tests {
     }
 
     #[test]
-    fn effects_agree_with_the_analytic_path_when_neutral_and_shift_the_fix() {
-        let twin = OtterTwin::default();
+    fn an_antenna_off_the_origin_shifts_the_fix() {
         let x = state();
-        let plain = twin.observe_state(&x);
-        // Forcing the numerical path with neutral effects gives the same.
-        let numeric = twin.observe_with_effects(&x);
-        assert!((plain.predicted - numeric.predicted).amax() < 1e-12);
-        assert!((plain.jacobian - numeric.jacobian).amax() < 1e-6);
-        let moved = twin.with_effects(SensorEffects {
+        let moved = OtterTwin::default().with_effects(SensorEffects {
             antenna_m: [2.0, 0.0],
             ..Default::default()
         });
@@ -1425,18 +1368,36 @@ mod tests {
         assert!((o.jacobian[(meas::YAW_RATE, idx::YAW_RATE_BIAS)] - 1.0).abs() < 1e-6);
     }
 
+    /// Without effects and with every effect on, `H` agrees with central
+    /// differences of the measurement.
     #[test]
     fn observation_jacobian_matches_finite_differences() {
-        let twin = OtterTwin::default();
+        let with_effects = OtterTwin::default().with_effects(SensorEffects {
+            antenna_m: [0.8, -0.3],
+            heading_offset_rad: 0.04,
+            sog_scale: 0.97,
+            gnss_latency_s: 0.4,
+            yaw_rate_scale: 1.05,
+            yaw_rate_bias_radps: 0.003,
+        });
         let x = state();
-        let o = twin.observe_state(&x);
-        let eps = 1e-7;
-        for j in 0..STATES {
-            let mut xp = x;
-            xp[j] += eps;
-            let num = (twin.observe_state(&xp).predicted - o.predicted) / eps;
-            for i in 0..MEASUREMENTS {
-                assert!((num[i] - o.jacobian[(i, j)]).abs() < 1e-5, "H[{i},{j}]");
+        for twin in [OtterTwin::default(), with_effects] {
+            let o = twin.observe_state(&x);
+            let eps = 1e-6;
+            for j in 0..STATES {
+                let (mut up, mut down) = (x, x);
+                up[j] += eps;
+                down[j] -= eps;
+                let num = (twin.observe_state(&up).predicted - twin.observe_state(&down).predicted)
+                    / (2.0 * eps);
+                for i in 0..MEASUREMENTS {
+                    assert!(
+                        (num[i] - o.jacobian[(i, j)]).abs() < 1e-7,
+                        "H[{i},{j}]: {} analytic, {} numeric",
+                        o.jacobian[(i, j)],
+                        num[i]
+                    );
+                }
             }
         }
     }
