@@ -170,50 +170,56 @@ pub fn inverse_small<const P: usize>(a: &SMatrix<f64, P, P>) -> Option<SMatrix<f
 
 /// Solves `a x = b` for a small general square `a` by Gaussian elimination
 /// with partial pivoting, or `None` if `a` is singular (a zero or non-finite
-/// pivot).
-#[inline]
+/// pivot). It works on row-major arrays, whose rows the elimination swaps
+/// and combines whole, with no index checks left in its loops; inlined, it
+/// runs in the step's AVX2 copy (the fault update's `P x P` inverse).
+#[inline(always)]
 pub fn solve_general<const P: usize, const C: usize>(
     a: &SMatrix<f64, P, P>,
     b: &SMatrix<f64, P, C>,
 ) -> Option<SMatrix<f64, P, C>> {
-    let mut a = *a;
-    let mut x = *b;
+    let mut a: [[f64; P]; P] = std::array::from_fn(|i| std::array::from_fn(|k| a[(i, k)]));
+    let mut x: [[f64; C]; P] = std::array::from_fn(|i| std::array::from_fn(|c| b[(i, c)]));
     for j in 0..P {
         let mut pivot = j;
         for i in j + 1..P {
-            if a[(i, j)].abs() > a[(pivot, j)].abs() {
+            if a[i][j].abs() > a[pivot][j].abs() {
                 pivot = i;
             }
         }
-        if !(a[(pivot, j)] != 0.0 && a[(pivot, j)].is_finite()) {
+        if !(a[pivot][j] != 0.0 && a[pivot][j].is_finite()) {
             return None;
         }
         if pivot != j {
-            a.swap_rows(pivot, j);
-            x.swap_rows(pivot, j);
+            a.swap(pivot, j);
+            x.swap(pivot, j);
         }
-        let inv = 1.0 / a[(j, j)];
-        for i in j + 1..P {
-            let f = a[(i, j)] * inv;
-            for k in j..P {
-                a[(i, k)] -= f * a[(j, k)];
+        let inv = 1.0 / a[j][j];
+        let (a_done, a_below) = a.split_at_mut(j + 1);
+        let (x_done, x_below) = x.split_at_mut(j + 1);
+        let (a_j, x_j) = (&a_done[j], &x_done[j]);
+        for (a_i, x_i) in a_below.iter_mut().zip(x_below.iter_mut()) {
+            let f = a_i[j] * inv;
+            for (v, pivot_v) in a_i[j..].iter_mut().zip(&a_j[j..]) {
+                *v -= f * pivot_v;
             }
-            for c in 0..C {
-                x[(i, c)] -= f * x[(j, c)];
+            for (v, pivot_v) in x_i.iter_mut().zip(x_j) {
+                *v -= f * pivot_v;
             }
         }
     }
     for j in (0..P).rev() {
-        let inv = 1.0 / a[(j, j)];
+        let inv = 1.0 / a[j][j];
+        let (x_upto, x_after) = x.split_at_mut(j + 1);
         for c in 0..C {
-            let mut s = x[(j, c)];
-            for k in j + 1..P {
-                s -= a[(j, k)] * x[(k, c)];
+            let mut s = x_upto[j][c];
+            for (a_jk, x_k) in a[j][j + 1..].iter().zip(x_after.iter()) {
+                s -= a_jk * x_k[c];
             }
-            x[(j, c)] = s * inv;
+            x_upto[j][c] = s * inv;
         }
     }
-    Some(x)
+    Some(SMatrix::from_fn(|i, c| x[i][c]))
 }
 
 /// `a b`, as plain loops the compiler unrolls (nalgebra's generic product is
