@@ -24,7 +24,7 @@ use nalgebra::{SMatrix, SVector};
 
 use crate::geodesy::wrap_pi;
 use crate::model::{Model, Observation, Transition};
-use crate::models::effects::{Kinematics, SensorEffects, gnss_measurement_linearised};
+use crate::models::effects::{Kinematics, SensorEffects, gnss_measurement_linearised, kin};
 use crate::trig;
 
 /// Index of each state component.
@@ -90,21 +90,6 @@ impl Default for WaterKinematic {
     }
 }
 
-impl WaterKinematic {
-    fn kinematics(&self, x: &SVector<f64, 7>) -> Kinematics {
-        let (s, c) = trig::sin_cos(x[idx::PSI]);
-        let (u, v) = (x[idx::U], self.sideslip_m * x[idx::R]);
-        Kinematics {
-            north_m: x[idx::NORTH],
-            east_m: x[idx::EAST],
-            heading_rad: x[idx::PSI],
-            yaw_rate_radps: x[idx::R],
-            ground_north_mps: u * c - v * s + x[idx::CURRENT_NORTH],
-            ground_east_mps: u * s + v * c + x[idx::CURRENT_EAST],
-        }
-    }
-}
-
 impl Model<7, MEASUREMENTS, 0> for WaterKinematic {
     type Input = ();
 
@@ -146,37 +131,33 @@ impl Model<7, MEASUREMENTS, 0> for WaterKinematic {
     }
 
     fn observe(&self, x: &SVector<f64, 7>) -> Observation<7, MEASUREMENTS> {
-        let (m, dm_dk) = gnss_measurement_linearised(&self.kinematics(x), &self.effects);
         let (s, c) = trig::sin_cos(x[idx::PSI]);
         let (u, k) = (x[idx::U], self.sideslip_m);
         let v = k * x[idx::R];
-        // The kinematics against the state: each field's non-zero
-        // derivatives (the sideslip's sway, v = k r, through the yaw rate).
-        let dk_dx: [&[(usize, f64)]; 6] = [
-            &[(idx::NORTH, 1.0)],
-            &[(idx::EAST, 1.0)],
-            &[(idx::PSI, 1.0)],
-            &[(idx::R, 1.0)],
-            &[
-                (idx::PSI, -u * s - v * c),
-                (idx::U, c),
-                (idx::R, -k * s),
-                (idx::CURRENT_NORTH, 1.0),
-            ],
-            &[
-                (idx::PSI, u * c - v * s),
-                (idx::U, s),
-                (idx::R, k * c),
-                (idx::CURRENT_EAST, 1.0),
-            ],
-        ];
+        let kinematics = Kinematics {
+            north_m: x[idx::NORTH],
+            east_m: x[idx::EAST],
+            heading_rad: x[idx::PSI],
+            yaw_rate_radps: x[idx::R],
+            ground_north_mps: u * c - v * s + x[idx::CURRENT_NORTH],
+            ground_east_mps: u * s + v * c + x[idx::CURRENT_EAST],
+        };
+        let (m, dm_dk) = gnss_measurement_linearised(&kinematics, &self.effects);
+        // The chain through the kinematics: the ground velocity depends on
+        // the heading, the speed through water, the current, and the yaw
+        // rate through the sideslip's sway (v = k r).
+        let dgn_dpsi = -u * s - v * c;
+        let dge_dpsi = u * c - v * s;
         let mut jacobian = SMatrix::<f64, MEASUREMENTS, 7>::zeros();
         for (row, dm) in dm_dk.iter().enumerate() {
-            for (field, dk) in dk_dx.iter().enumerate() {
-                for &(j, d) in dk.iter() {
-                    jacobian[(row, j)] += dm[field] * d;
-                }
-            }
+            let (dgn, dge) = (dm[kin::GROUND_NORTH], dm[kin::GROUND_EAST]);
+            jacobian[(row, idx::NORTH)] = dm[kin::NORTH];
+            jacobian[(row, idx::EAST)] = dm[kin::EAST];
+            jacobian[(row, idx::PSI)] = dm[kin::HEADING] + dgn * dgn_dpsi + dge * dge_dpsi;
+            jacobian[(row, idx::U)] = dgn * c + dge * s;
+            jacobian[(row, idx::R)] = dm[kin::YAW_RATE] + k * (dge * c - dgn * s);
+            jacobian[(row, idx::CURRENT_NORTH)] = dgn;
+            jacobian[(row, idx::CURRENT_EAST)] = dge;
         }
         jacobian[(meas::STW, idx::U)] = self.stw_scale;
         jacobian[(meas::YAW_RATE, idx::R)] = self.effects.yaw_rate_scale;
