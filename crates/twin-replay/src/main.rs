@@ -13,9 +13,10 @@ use twin_replay::{Rate, ReplayOptions};
 use twin_wire::{AssemblerConfig, KeySpace, VesselId};
 use twin_zenoh::ZenohArgs;
 
-/// Publishes a recorded log (NMEA 0183, canboat NMEA 2000 text or JSON
-/// lines, picked by content) over Zenoh as the twin's input messages, with
-/// the original time stamps and `replay: true`.
+/// Publishes a recorded log (any format the twin reads, picked by content:
+/// NMEA 0183, NMEA 2000 captures, MAVLink `.tlog`, gpsd JSON, JSON lines,
+/// or an MCAP recording's input channels) over Zenoh as the twin's input
+/// messages, with the original time stamps and `replay: true`.
 #[derive(Debug, Parser)]
 #[command(name = "twin-replay", version)]
 struct Cli {

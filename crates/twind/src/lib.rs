@@ -26,7 +26,8 @@
 //!   not keep up: [`forecast::FaultPathLoad`]).
 //! - [`run`] (here): one Zenoh subscriber for every input topic of the
 //!   vessels this daemon owns, with the dispatcher as its callback; the
-//!   queryable for the latest states; the graceful shutdown.
+//!   queryable for the latest state, fault, alarm and finding; the
+//!   graceful shutdown.
 //!
 //! # Shutdown
 //! Decide, tell, wait (tokio's guide): the caller cancels the token; `run`

@@ -501,9 +501,11 @@ impl Derivatives {
 
 /// Whether `A_PATTERN` has the block structure [`SubstepJacobians`] relies
 /// on. With `eta = (north, east, psi)`, `nu = (u, v, r)` and `c` the
-/// constants (current, heading bias): `A = [[E, N, C], [0, D, 0], [0, 0,
-/// 0]]`, where `E` is non-zero only in the psi column of the north and east
-/// rows (so `E^2 = 0`) and `C` is zero in the psi row (so `E C = 0`).
+/// constants the dynamics read (current, heading bias): `A = [[E, N, C],
+/// [0, D, 0], [0, 0, 0]]`, where `E` is non-zero only in the psi column of
+/// the north and east rows (so `E^2 = 0`) and `C` is zero in the psi row
+/// (so `E C = 0`). The rate sensor's bias enters only the measurement: its
+/// column of `A` is zero (`SubstepJacobians` keeps `C` as 3 x 3).
 const fn block_structure_holds(a: &Pattern<STATES, STATES>) -> bool {
     let mut i = 0;
     while i < STATES {
@@ -513,6 +515,8 @@ const fn block_structure_holds(a: &Pattern<STATES, STATES>) -> bool {
             let nu_row = i >= 3 && i < 6;
             let allowed = if eta_row && j < 3 {
                 j == idx::PSI && i != idx::PSI
+            } else if j == idx::YAW_RATE_BIAS {
+                false
             } else if eta_row && j >= 6 {
                 i != idx::PSI
             } else if eta_row {
