@@ -524,6 +524,123 @@ pub fn render_text(r: &DiagnoseReport) -> String {
     o
 }
 
+/// A profile with the findings that describe the vessel itself carried
+/// into it (`twin diagnose --out`), and what was not carried.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiagnosedProfile {
+    /// The starting profile with the findings applied.
+    pub profile: VesselProfile,
+    /// What was carried, one line each (`lever_arm: antenna ...`).
+    pub carried: Vec<String>,
+    /// The findings a profile cannot hold: a sensor to calibrate (or whose
+    /// error to state where the twin takes it), the water, a propeller.
+    pub not_carried: Vec<String>,
+}
+
+/// The default name of a profile diagnosed from one named `start`: it ends
+/// in `-diagnosed` (once), within a profile name's 64 characters.
+pub fn diagnosed_name(start: &str) -> String {
+    const SUFFIX: &str = "-diagnosed";
+    if start.ends_with(SUFFIX) {
+        return start.to_owned();
+    }
+    let keep = start.len().min(64 - SUFFIX.len());
+    format!("{}{SUFFIX}", &start[..keep])
+}
+
+/// `start` with the findings of `report` that describe the vessel carried
+/// into it, named `name`: a `lever_arm` moves the antenna by its offset (a
+/// lever arm is found against the profile's antenna), and a
+/// `surge_damping`, `yaw_damping` or `mass` scale multiplies the
+/// profile's numbers as the diagnosis scaled them
+/// ([`twin_core::vessel::VesselParams::scaled`]; a mass scale applies to the
+/// mass, the yaw inertia and the added mass alike). The rest stays out: a
+/// heading offset, a scale, a latency or a rate sensor's bias belong to a
+/// sensor, a current to the water, a loss to a propeller.
+pub fn profile_with_findings(
+    start: &VesselProfile,
+    report: &DiagnoseReport,
+    name: &str,
+) -> DiagnosedProfile {
+    let number = |f: &FindingJson, key: &str| f.parameters.get(key).and_then(|v| v.as_f64());
+    let mut profile = start.clone();
+    let mut scales = [1.0; 4];
+    let mut carried = Vec::new();
+    let mut not_carried = Vec::new();
+    for f in &report.findings {
+        let scale_slot = match f.cause.as_str() {
+            "surge_damping" => Some(0),
+            "yaw_damping" => Some(1),
+            "mass" => Some(3),
+            _ => None,
+        };
+        match (f.cause.as_str(), scale_slot) {
+            ("lever_arm", _) => {
+                let (Some(x), Some(y)) = (number(f, "x_m"), number(f, "y_m")) else {
+                    not_carried.push(f.cause.clone());
+                    continue;
+                };
+                profile.gnss.antenna_forward_m += x;
+                profile.gnss.antenna_starboard_m += y;
+                carried.push(format!(
+                    "lever_arm: antenna {:.2} m forward, {:.2} m to starboard",
+                    profile.gnss.antenna_forward_m, profile.gnss.antenna_starboard_m
+                ));
+            }
+            (cause, Some(slot)) => {
+                let Some(scale) = number(f, "scale") else {
+                    not_carried.push(f.cause.clone());
+                    continue;
+                };
+                scales[slot] = scale;
+                carried.push(format!("{cause}: the profile's times {scale:.3}"));
+            }
+            _ => not_carried.push(f.cause.clone()),
+        }
+    }
+    // As `VesselParams::scaled` scales them, on the profile's own numbers
+    // (the others keep their bits, and the profile's fingerprint moves only
+    // with what was carried).
+    let [surge, yaw, _, mass] = scales;
+    profile.damping.surge_n_per_mps *= surge;
+    profile.damping.yaw_nm_per_radps *= yaw;
+    let m = &mut profile.mass;
+    for value in [
+        &mut m.mass_kg,
+        &mut m.yaw_inertia_kgm2,
+        &mut m.added_mass_surge_kg,
+        &mut m.added_mass_sway_kg,
+        &mut m.added_inertia_yaw_kgm2,
+    ] {
+        *value *= mass;
+    }
+    profile.name = name.to_owned();
+    let log = &report.log;
+    profile.description = if carried.is_empty() {
+        format!(
+            "{} (diagnosed on {log}: nothing carried)",
+            start.description
+        )
+    } else {
+        let causes: Vec<&str> = carried
+            .iter()
+            .map(|c| c.split(':').next().unwrap_or(c))
+            .collect();
+        format!(
+            "{} (with the findings of twin diagnose on {log}: {})",
+            start.description,
+            causes.join(", ")
+        )
+    }
+    .trim_start_matches(' ')
+    .to_owned();
+    DiagnosedProfile {
+        profile,
+        carried,
+        not_carried,
+    }
+}
+
 /// Writes SVG figures of the held-out innovations before and after the
 /// findings into `dir`: one file per measured component.
 pub fn write_plots(r: &DiagnoseReport, dir: &Path) -> std::io::Result<Vec<PathBuf>> {

@@ -81,6 +81,16 @@ enum Command {
         /// The vessel's profile (TOML, docs/profiles.md); the Otter's by default.
         #[arg(long, value_name = "FILE")]
         profile: Option<PathBuf>,
+        /// Write the profile with the findings that describe the vessel
+        /// carried into it (the antenna's position from a lever arm; the
+        /// surge damping, yaw damping and mass scales) to this file, for the
+        /// live twin and the next diagnosis.
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+        /// The written profile's name (default: the profile's, ending in
+        /// "-diagnosed").
+        #[arg(long, requires = "out")]
+        name: Option<String>,
     },
     /// Fits a vessel profile's mass and damping from a trial of the healthy
     /// vessel (steps of thrust, turns both ways; docs/identification.md),
@@ -209,6 +219,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             plot,
             source,
             profile,
+            out,
+            name,
         } => {
             let profile = load_profile(profile.as_deref())?;
             let report = twin_cli::diagnose::diagnose_path(
@@ -231,6 +243,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     eprintln!("wrote {}", p.display());
                 }
             }
+            if let Some(out) = out {
+                let name =
+                    name.unwrap_or_else(|| twin_cli::diagnose::diagnosed_name(&profile.name));
+                write_diagnosed_profile(&profile, &report, &name, &out)?;
+            }
         }
         Command::Identify {
             log,
@@ -240,6 +257,37 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             json,
             source,
         } => identify(&log, profile.as_deref(), &name, out, json, &source)?,
+    }
+    Ok(())
+}
+
+/// `twin diagnose --out`: the profile with the findings that describe the
+/// vessel, written to `out`; what was and was not carried, on stderr.
+fn write_diagnosed_profile(
+    start: &VesselProfile,
+    report: &twin_cli::diagnose::DiagnoseReport,
+    name: &str,
+    out: &Path,
+) -> anyhow::Result<()> {
+    let diagnosed = twin_cli::diagnose::profile_with_findings(start, report, name);
+    diagnosed
+        .profile
+        .validate()
+        .with_context(|| format!("the profile with the findings of {}", report.log))?;
+    std::fs::write(out, diagnosed.profile.to_toml())
+        .with_context(|| format!("writing {}", out.display()))?;
+    eprintln!("wrote {} (profile {})", out.display(), name);
+    if diagnosed.carried.is_empty() {
+        eprintln!("  carried      nothing: no finding describes the vessel itself");
+    }
+    for line in &diagnosed.carried {
+        eprintln!("  carried      {line}");
+    }
+    if !diagnosed.not_carried.is_empty() {
+        eprintln!(
+            "  not carried  {} (a sensor, the water or a propeller, not the vessel's profile)",
+            diagnosed.not_carried.join(", ")
+        );
     }
     Ok(())
 }
