@@ -4,7 +4,7 @@
 //! this command's).
 //!
 //! ```text
-//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I [--every S]] [--onsets] [--list] [--known-antenna] [--identified] [--gyro all|none] [--gyro-bias-deg-s B] [--hold-gyro-bias]
+//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I [--every S]] [--onsets] [--list] [--known-antenna] [--identified] [--diagnosed] [--gyro all|none] [--gyro-bias-deg-s B] [--hold-gyro-bias]
 //! ```
 //!
 //! `--trace I` prints what the twin published over draw `I`, every 10 s
@@ -20,7 +20,10 @@
 //! a profile that states it does (the twin does not estimate it);
 //! `--identified` sails each draw on the profile `twin identify` gives
 //! from a healthy trial of the draw's vessel first
-//! (`twin_tests::trust::with_identified_profile`);
+//! (`twin_tests::trust::with_identified_profile`); `--diagnosed` on the
+//! profile `twin diagnose --out` writes from the same healthy trial (the
+//! antenna and the hull's scales the diagnosis finds;
+//! `twin_tests::trust::with_diagnosed_profile`);
 //! `--gyro all` gives every draw a rate gyro and `--gyro none` none, the
 //! draws otherwise the same (vessel, effects, noise): run both to see what
 //! a measured yaw rate buys. `--gyro-bias-deg-s B` gives each draw's gyro a
@@ -33,7 +36,8 @@ use twin_core::decision::ThrusterStatus;
 use twin_core::twin::TwinConfig;
 use twin_tests::trust::{
     DETECT_WITHIN_S, Draw, MATRIX_OTHER_DRAWS, MATRIX_OWN_DRAWS, MATRIX_SEED, MUST_DETECT_LOSS,
-    matrix_draws, run, run_matrix_with, simulate, with_identified_profile, with_known_antenna,
+    matrix_draws, run, run_matrix_with, simulate, with_diagnosed_profile, with_identified_profile,
+    with_known_antenna,
 };
 
 /// What the twin is told of each draw's vessel beyond the Otter's profile.
@@ -43,6 +47,8 @@ struct Told {
     antenna: bool,
     /// A profile identified from a healthy trial of the vessel.
     identified: bool,
+    /// The profile a diagnosis of a healthy trial of the vessel writes.
+    diagnosed: bool,
     /// Every draw with a rate gyro (true) or none (false), in place of
     /// the drawn one.
     gyro: Option<bool>,
@@ -74,6 +80,9 @@ fn config_of(draw: &Draw, told: Told) -> Result<TwinConfig, String> {
     config.kinetic.estimate_yaw_rate_bias = !told.hold_gyro_bias;
     if told.antenna {
         config = with_known_antenna(config, draw);
+    }
+    if told.diagnosed {
+        config = with_diagnosed_profile(config, draw)?;
     }
     if told.identified {
         config = with_identified_profile(config, draw)?;
@@ -110,6 +119,7 @@ fn main() -> Result<(), String> {
             "--onsets" => onsets = true,
             "--known-antenna" => told.antenna = true,
             "--identified" => told.identified = true,
+            "--diagnosed" => told.diagnosed = true,
             "--hold-gyro-bias" => told.hold_gyro_bias = true,
             "--gyro" => {
                 told.gyro = match args.next().as_deref() {

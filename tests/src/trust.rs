@@ -1463,14 +1463,7 @@ fn identification_scenario() -> Result<Scenario, String> {
 /// what an operator who ran that trial first would sail with
 /// (docs/identification.md).
 pub fn with_identified_profile(config: TwinConfig, draw: &Draw) -> Result<TwinConfig, String> {
-    let healthy = identification_draw(draw);
-    let mut start = twin_wire::profile::VesselProfile::otter();
-    [start.gnss.antenna_forward_m, start.gnss.antenna_starboard_m] =
-        config.kinetic.params.antenna_m;
-    let trial = match draw.simulator {
-        Simulator::Own => simulate_scenario(&with_draw(&healthy, identification_scenario()?)),
-        Simulator::Other => simulate_other(&healthy)?,
-    };
+    let (start, trial) = healthy_trial(&config, draw)?;
     let report = twin_cli::identify::identify_reader(
         Cursor::new(&trial.log),
         std::path::Path::new("identification-trial.jsonl"),
@@ -1481,6 +1474,54 @@ pub fn with_identified_profile(config: TwinConfig, draw: &Draw) -> Result<TwinCo
     )
     .map_err(|e| format!("{}: {e}", draw.describe()))?;
     Ok(report.identified.twin_config(config))
+}
+
+/// The Otter's profile with the antenna where `config` puts it, and the
+/// healthy trial of `draw`'s vessel ([`identification_draw`]) on the
+/// simulator of `draw`.
+fn healthy_trial(
+    config: &TwinConfig,
+    draw: &Draw,
+) -> Result<(twin_wire::profile::VesselProfile, Trial), String> {
+    let healthy = identification_draw(draw);
+    let mut start = twin_wire::profile::VesselProfile::otter();
+    [start.gnss.antenna_forward_m, start.gnss.antenna_starboard_m] =
+        config.kinetic.params.antenna_m;
+    let trial = match draw.simulator {
+        Simulator::Own => simulate_scenario(&with_draw(&healthy, identification_scenario()?)),
+        Simulator::Other => simulate_other(&healthy)?,
+    };
+    Ok((start, trial))
+}
+
+/// The twin's `config` on the profile `twin diagnose --out` writes from
+/// the same healthy trial of `draw`'s vessel as [`with_identified_profile`]
+/// sails, diagnosed on the Otter's profile with the antenna where `config`
+/// puts it: the antenna's position and the hull's scales the diagnosis
+/// finds, carried into the profile (`twin_cli::diagnose::profile_with_findings`).
+pub fn with_diagnosed_profile(config: TwinConfig, draw: &Draw) -> Result<TwinConfig, String> {
+    let (start, trial) = healthy_trial(&config, draw)?;
+    let name = "healthy-trial.jsonl";
+    let log = twin_cli::diagnose::load(
+        Cursor::new(&trial.log),
+        std::path::Path::new(name),
+        twin_wire::assemble::SourceChoice::Best,
+    )
+    .map_err(|e| format!("{}: {e}", draw.describe()))?;
+    let report = twin_cli::diagnose::diagnose_loaded(
+        name,
+        &log,
+        &twin_core::diagnose::DiagnoseConfig::default(),
+        &start,
+    )
+    .map_err(|e| format!("{}: {e}", draw.describe()))?;
+    let diagnosed =
+        twin_cli::diagnose::profile_with_findings(&start, &report.findings, name, "diagnosed");
+    diagnosed
+        .profile
+        .validate()
+        .map_err(|e| format!("{}: {e}", draw.describe()))?;
+    Ok(diagnosed.profile.twin_config(config))
 }
 
 /// [`run_matrix`] with the twin's configuration chosen per draw by

@@ -532,8 +532,9 @@ pub struct DiagnosedProfile {
     pub profile: VesselProfile,
     /// What was carried, one line each (`lever_arm: antenna ...`).
     pub carried: Vec<String>,
-    /// The findings a profile cannot hold: a sensor to calibrate (or whose
-    /// error to state where the twin takes it), the water, a propeller.
+    /// The findings a profile does not hold: a sensor to calibrate, the
+    /// water, a propeller; and an antenna the profile would have off the
+    /// hull, with why.
     pub not_carried: Vec<String>,
 }
 
@@ -548,18 +549,21 @@ pub fn diagnosed_name(start: &str) -> String {
     format!("{}{SUFFIX}", &start[..keep])
 }
 
-/// `start` with the findings of `report` that describe the vessel carried
-/// into it, named `name`: a `lever_arm` moves the antenna by its offset (a
+/// `start` with the `findings` of a diagnosis of `log` that describe the
+/// vessel carried into it, named `name`: a `lever_arm` moves the antenna by its offset (a
 /// lever arm is found against the profile's antenna), and a
 /// `surge_damping`, `yaw_damping` or `mass` scale multiplies the
 /// profile's numbers as the diagnosis scaled them
 /// ([`twin_core::vessel::VesselParams::scaled`]; a mass scale applies to the
 /// mass, the yaw inertia and the added mass alike). The rest stays out: a
 /// heading offset, a scale, a latency or a rate sensor's bias belong to a
-/// sensor, a current to the water, a loss to a propeller.
+/// sensor, a current to the water, a loss to a propeller; and a lever arm
+/// that would put the antenna off the hull (the profile's bounds) is
+/// evidence of something else, not carried.
 pub fn profile_with_findings(
     start: &VesselProfile,
-    report: &DiagnoseReport,
+    findings: &[FindingJson],
+    log: &str,
     name: &str,
 ) -> DiagnosedProfile {
     let number = |f: &FindingJson, key: &str| f.parameters.get(key).and_then(|v| v.as_f64());
@@ -567,7 +571,7 @@ pub fn profile_with_findings(
     let mut scales = [1.0; 4];
     let mut carried = Vec::new();
     let mut not_carried = Vec::new();
-    for f in &report.findings {
+    for f in findings {
         let scale_slot = match f.cause.as_str() {
             "surge_damping" => Some(0),
             "yaw_damping" => Some(1),
@@ -580,8 +584,17 @@ pub fn profile_with_findings(
                     not_carried.push(f.cause.clone());
                     continue;
                 };
-                profile.gnss.antenna_forward_m += x;
-                profile.gnss.antenna_starboard_m += y;
+                let mut moved = profile.clone();
+                moved.gnss.antenna_forward_m += x;
+                moved.gnss.antenna_starboard_m += y;
+                // An antenna the profile cannot hold (off the hull) is
+                // evidence of something else (a latency aliased with a
+                // fore-and-aft offset), not a place to write.
+                if let Err(e) = moved.validate() {
+                    not_carried.push(format!("lever_arm ({e})"));
+                    continue;
+                }
+                profile = moved;
                 carried.push(format!(
                     "lever_arm: antenna {:.2} m forward, {:.2} m to starboard",
                     profile.gnss.antenna_forward_m, profile.gnss.antenna_starboard_m
@@ -615,7 +628,6 @@ pub fn profile_with_findings(
         *value *= mass;
     }
     profile.name = name.to_owned();
-    let log = &report.log;
     profile.description = if carried.is_empty() {
         format!(
             "{} (diagnosed on {log}: nothing carried)",
@@ -686,4 +698,100 @@ pub fn write_plots(r: &DiagnoseReport, dir: &Path) -> std::io::Result<Vec<PathBu
         written.push(path);
     }
     Ok(written)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn finding(cause: &str, parameters: serde_json::Value) -> FindingJson {
+        serde_json::from_value(serde_json::json!({
+            "cause": cause,
+            "parameters": parameters,
+            "uncertainty": {},
+            "evidence": [],
+            "gain": {
+                "heldout_nll_gain": 20.0,
+                "heldout_steps": 100,
+                "nis_per_dof": {"before": 1.3, "after": 1.0},
+                "prediction_rmse_m": []
+            }
+        }))
+        .unwrap()
+    }
+
+    #[test]
+    fn an_antenna_the_profile_would_have_off_the_hull_is_not_carried() {
+        let otter = VesselProfile::otter();
+        let half_length = otter.hull.length_m / 2.0;
+        let findings = [finding(
+            "lever_arm",
+            serde_json::json!({"x_m": -(half_length + 0.1), "y_m": 0.1}),
+        )];
+        let d = profile_with_findings(&otter, &findings, "log.jsonl", "p");
+        assert!(d.carried.is_empty(), "{:?}", d.carried);
+        assert_eq!(d.not_carried.len(), 1);
+        assert!(
+            d.not_carried[0].starts_with("lever_arm (gnss."),
+            "{:?}",
+            d.not_carried
+        );
+        assert_eq!(d.profile.gnss, otter.gnss);
+        d.profile.validate().unwrap();
+        // On the hull, it is carried, onto the profile's own antenna.
+        let mut start = otter.clone();
+        start.gnss.antenna_forward_m = 0.2;
+        let findings = [finding(
+            "lever_arm",
+            serde_json::json!({"x_m": 0.3, "y_m": -0.1}),
+        )];
+        let d = profile_with_findings(&start, &findings, "log.jsonl", "p");
+        assert_eq!(d.profile.gnss.antenna_forward_m, 0.5);
+        assert_eq!(d.profile.gnss.antenna_starboard_m, -0.1);
+    }
+
+    #[test]
+    fn hull_scales_are_carried_as_the_diagnosis_ran_them_and_the_rest_stays_out() {
+        let otter = VesselProfile::otter();
+        let findings = [
+            finding("heading_offset", serde_json::json!({"offset_deg": 4.0})),
+            finding("mass", serde_json::json!({"scale": 1.25})),
+            finding("yaw_damping", serde_json::json!({"scale": 0.8})),
+            finding(
+                "thruster_loss",
+                serde_json::json!({"side": "port", "loss": 0.2}),
+            ),
+        ];
+        let d = profile_with_findings(&otter, &findings, "trial.jsonl", "heavier");
+        assert_eq!(d.not_carried, ["heading_offset", "thruster_loss"]);
+        assert_eq!(d.carried.len(), 2);
+        assert_eq!(d.profile.name, "heavier");
+        assert!(
+            d.profile
+                .description
+                .ends_with("trial.jsonl: mass, yaw_damping)")
+        );
+        let ran_on = otter.params().scaled([1.0, 0.8, 1.0, 1.25]);
+        let written = d.profile.params();
+        assert!((written.mass_matrix - ran_on.mass_matrix).norm() <= 1e-9);
+        assert!((written.mass_kg - ran_on.mass_kg).abs() <= 1e-9);
+        for (w, r) in written.added_mass.iter().zip(ran_on.added_mass) {
+            assert!((w - r).abs() <= 1e-9);
+        }
+        for (w, r) in written.linear_damping.iter().zip(ran_on.linear_damping) {
+            assert!((w - r).abs() <= 1e-9 * r.abs());
+        }
+        assert_eq!(d.profile.propellers, otter.propellers);
+        assert_eq!(d.profile.hull, otter.hull);
+    }
+
+    #[test]
+    fn a_diagnosed_profiles_name_ends_in_diagnosed_once_and_stays_a_name() {
+        assert_eq!(diagnosed_name("otter"), "otter-diagnosed");
+        assert_eq!(diagnosed_name("otter-diagnosed"), "otter-diagnosed");
+        let long = "a".repeat(64);
+        let name = diagnosed_name(&long);
+        assert_eq!(name.len(), 64);
+        assert!(name.ends_with("-diagnosed"));
+    }
 }

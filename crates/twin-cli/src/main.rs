@@ -269,7 +269,8 @@ fn write_diagnosed_profile(
     name: &str,
     out: &Path,
 ) -> anyhow::Result<()> {
-    let diagnosed = twin_cli::diagnose::profile_with_findings(start, report, name);
+    let diagnosed =
+        twin_cli::diagnose::profile_with_findings(start, &report.findings, &report.log, name);
     diagnosed
         .profile
         .validate()
@@ -285,7 +286,7 @@ fn write_diagnosed_profile(
     }
     if !diagnosed.not_carried.is_empty() {
         eprintln!(
-            "  not carried  {} (a sensor, the water or a propeller, not the vessel's profile)",
+            "  not carried  {} (a sensor, the water, a propeller, or off the hull: not the vessel's profile)",
             diagnosed.not_carried.join(", ")
         );
     }

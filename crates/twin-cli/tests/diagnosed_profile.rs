@@ -179,7 +179,7 @@ fn a_fouled_hull_is_written_into_the_profile_and_not_found_again() {
         causes(&before)
     );
 
-    let diagnosed = profile_with_findings(&otter, &before, "fouled");
+    let diagnosed = profile_with_findings(&otter, &before.findings, &before.log, "fouled");
     assert_eq!(diagnosed.profile.name, "fouled");
     assert!(
         diagnosed
