@@ -1494,29 +1494,51 @@ fn healthy_trial(
     Ok((start, trial))
 }
 
-/// The twin's `config` on the profile `twin diagnose --out` writes from
-/// the same healthy trial of `draw`'s vessel as [`with_identified_profile`]
-/// sails, diagnosed on the Otter's profile with the antenna where `config`
-/// puts it: the antenna's position and the hull's scales the diagnosis
-/// finds, carried into the profile (`twin_cli::diagnose::profile_with_findings`).
-pub fn with_diagnosed_profile(config: TwinConfig, draw: &Draw) -> Result<TwinConfig, String> {
-    let (start, trial) = healthy_trial(&config, draw)?;
-    let name = "healthy-trial.jsonl";
+/// The name the healthy trial's log is diagnosed under.
+pub const HEALTHY_TRIAL_LOG: &str = "healthy-trial.jsonl";
+
+/// `twin diagnose` of the same healthy trial of `draw`'s vessel as
+/// [`with_identified_profile`] sails, on the Otter's profile with the
+/// antenna where `config` puts it: that profile, and the report.
+pub fn diagnose_healthy_trial(
+    config: &TwinConfig,
+    draw: &Draw,
+) -> Result<
+    (
+        twin_wire::profile::VesselProfile,
+        twin_cli::diagnose::DiagnoseReport,
+    ),
+    String,
+> {
+    let (start, trial) = healthy_trial(config, draw)?;
     let log = twin_cli::diagnose::load(
         Cursor::new(&trial.log),
-        std::path::Path::new(name),
+        std::path::Path::new(HEALTHY_TRIAL_LOG),
         twin_wire::assemble::SourceChoice::Best,
     )
     .map_err(|e| format!("{}: {e}", draw.describe()))?;
     let report = twin_cli::diagnose::diagnose_loaded(
-        name,
+        HEALTHY_TRIAL_LOG,
         &log,
         &twin_core::diagnose::DiagnoseConfig::default(),
         &start,
     )
     .map_err(|e| format!("{}: {e}", draw.describe()))?;
-    let diagnosed =
-        twin_cli::diagnose::profile_with_findings(&start, &report.findings, name, "diagnosed");
+    Ok((start, report))
+}
+
+/// The twin's `config` on the profile `twin diagnose --out` writes from
+/// [`diagnose_healthy_trial`]: the antenna's position and the hull's
+/// scales the diagnosis finds, carried into the profile
+/// (`twin_cli::diagnose::profile_with_findings`).
+pub fn with_diagnosed_profile(config: TwinConfig, draw: &Draw) -> Result<TwinConfig, String> {
+    let (start, report) = diagnose_healthy_trial(&config, draw)?;
+    let diagnosed = twin_cli::diagnose::profile_with_findings(
+        &start,
+        &report.findings,
+        HEALTHY_TRIAL_LOG,
+        "diagnosed",
+    );
     diagnosed
         .profile
         .validate()

@@ -12,9 +12,9 @@
 
 use twin_core::twin::TwinConfig;
 use twin_tests::trust::{
-    Class, HORIZONS_S, MATRIX_OTHER_DRAWS, MATRIX_OWN_DRAWS, MATRIX_SEED, Matrix, matrix_draws,
-    other_simulator_unavailable, run_matrix, run_matrix_with, with_identified_profile,
-    with_known_antenna,
+    Class, HEALTHY_TRIAL_LOG, HORIZONS_S, MATRIX_OTHER_DRAWS, MATRIX_OWN_DRAWS, MATRIX_SEED,
+    Matrix, Simulator, diagnose_healthy_trial, matrix_draws, other_simulator_unavailable,
+    run_matrix, run_matrix_with, with_identified_profile, with_known_antenna,
 };
 
 /// Two standard deviations cover 95 % of a normal error; the bar leaves
@@ -124,6 +124,54 @@ fn a_draw_sails_on_the_profile_identified_from_a_trial_of_its_vessel() {
         config.kinetic.profile_sigma[0] < otter.profile_sigma[0],
         "identified: {:?}",
         config.kinetic.profile_sigma
+    );
+}
+
+/// A GNSS latency and a fore-and-aft antenna offset shift a fix alike at
+/// constant speed. On the healthy trial of seed 48's draw 45 (a 0.37 s
+/// latency on a vessel whose mass, damping and thrust are 20-30 % off the
+/// Otter's) a lever-arm search three quarters of the hull's length wide
+/// named the antenna 1.12 m aft of the reference point, off the 2 m hull.
+/// The search keeps the antenna on the profile's hull and refuses a fit
+/// that runs to its edge: whatever the diagnosis names, the antenna it
+/// puts is on the hull, and `twin diagnose --out` carries it.
+#[test]
+fn a_diagnosis_never_puts_the_antenna_off_the_hull() {
+    let draw = &matrix_draws(MATRIX_OWN_DRAWS, MATRIX_OTHER_DRAWS, 48)[45];
+    assert!(
+        draw.class == Class::Latency && draw.simulator == Simulator::Own,
+        "{}",
+        draw.describe()
+    );
+    let (start, report) = diagnose_healthy_trial(&TwinConfig::default(), draw).expect("it runs");
+    let (half_length, half_beam) = (start.hull.length_m / 2.0, start.hull.beam_m / 2.0);
+    for f in report.findings.iter().filter(|f| f.cause == "lever_arm") {
+        let at = |k: &str| f.parameters[k].as_f64().expect("a number");
+        let (x, y) = (
+            start.gnss.antenna_forward_m + at("x_m"),
+            start.gnss.antenna_starboard_m + at("y_m"),
+        );
+        assert!(
+            x.abs() < half_length && y.abs() < half_beam,
+            "antenna named at ({x:.3}, {y:.3}) m, off the {} m x {} m hull ({})",
+            start.hull.length_m,
+            start.hull.beam_m,
+            draw.describe()
+        );
+    }
+    let diagnosed = twin_cli::diagnose::profile_with_findings(
+        &start,
+        &report.findings,
+        HEALTHY_TRIAL_LOG,
+        "diagnosed",
+    );
+    assert!(
+        !diagnosed
+            .not_carried
+            .iter()
+            .any(|n| n.starts_with("lever_arm")),
+        "{:?}",
+        diagnosed.not_carried
     );
 }
 

@@ -572,14 +572,9 @@ pub fn profile_with_findings(
     let mut carried = Vec::new();
     let mut not_carried = Vec::new();
     for f in findings {
+        // The slot of `VesselParams::scaled`'s scales a cause sets.
         let scale_slot = match f.cause.as_str() {
-            "surge_damping" => Some(0),
-            "yaw_damping" => Some(1),
-            "mass" => Some(3),
-            _ => None,
-        };
-        match (f.cause.as_str(), scale_slot) {
-            ("lever_arm", _) => {
+            "lever_arm" => {
                 let (Some(x), Some(y)) = (number(f, "x_m"), number(f, "y_m")) else {
                     not_carried.push(f.cause.clone());
                     continue;
@@ -599,17 +594,22 @@ pub fn profile_with_findings(
                     "lever_arm: antenna {:.2} m forward, {:.2} m to starboard",
                     profile.gnss.antenna_forward_m, profile.gnss.antenna_starboard_m
                 ));
+                continue;
             }
-            (cause, Some(slot)) => {
-                let Some(scale) = number(f, "scale") else {
-                    not_carried.push(f.cause.clone());
-                    continue;
-                };
-                scales[slot] = scale;
-                carried.push(format!("{cause}: the profile's times {scale:.3}"));
+            "surge_damping" => 0,
+            "yaw_damping" => 1,
+            "mass" => 3,
+            _ => {
+                not_carried.push(f.cause.clone());
+                continue;
             }
-            _ => not_carried.push(f.cause.clone()),
-        }
+        };
+        let Some(scale) = number(f, "scale") else {
+            not_carried.push(f.cause.clone());
+            continue;
+        };
+        scales[scale_slot] = scale;
+        carried.push(format!("{}: the profile's times {scale:.3}", f.cause));
     }
     // As `VesselParams::scaled` scales them, on the profile's own numbers
     // (the others keep their bits, and the profile's fingerprint moves only

@@ -42,6 +42,9 @@ pub struct VesselParams {
     pub shaft_time_constant_s: f64,
     /// Hull (pontoon) length, m.
     pub length_m: f64,
+    /// Hull beam (overall, across both pontoons), m: with `length_m`, the
+    /// rectangle the GNSS antenna can be on.
+    pub beam_m: f64,
     /// Draft, m: the displaced volume of two pontoons with block
     /// coefficient 0.4 and beam 0.25 m, `(m / rho) / (2 0.4 0.25 L)`.
     pub draft_m: f64,
@@ -84,6 +87,7 @@ impl Default for VesselParams {
             min_shaft_speed_radps: -101.7,
             shaft_time_constant_s: 0.1,
             length_m: 2.0,
+            beam_m: 1.08,
             draft_m: (80.0 / 1025.0) / (2.0 * 0.4 * 0.25 * 2.0),
             water_density_kgpm3: 1025.0,
             crossflow_drag_coeff: 1.0,

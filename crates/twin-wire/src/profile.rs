@@ -494,6 +494,7 @@ impl VesselProfile {
             min_shaft_speed_radps: -p.max_shaft_speed_astern_radps,
             shaft_time_constant_s: p.shaft_time_constant_s,
             length_m: h.length_m,
+            beam_m: h.beam_m,
             draft_m: h.draft_m,
             water_density_kgpm3: h.water_density_kgpm3,
             crossflow_drag_coeff: h.crossflow_drag_coeff,

@@ -260,9 +260,9 @@ pub(super) struct ScalarSearch {
 pub(super) struct PlaneSearch {
     /// The parameters' names in reports.
     pub parameters: [&'static str; 2],
-    /// Each offset's bound either side of the reference point, m, from the
-    /// vessel's profile: the antenna is on the hull.
-    pub half_width_m: fn(&VesselParams) -> f64,
+    /// Each offset's range `(lowest, highest)`, forward then starboard, m,
+    /// from the vessel's profile: the antenna stays on the hull.
+    pub bounds_m: fn(&VesselParams) -> [(f64, f64); 2],
     /// Grid points per offset.
     pub grid: usize,
     /// The smallest offset worth reporting, m.
@@ -489,13 +489,22 @@ static LEVER_ARM: CauseSpec = CauseSpec {
     applies: |log| log.has_position && (log.base == BaseModel::Kinetic || log.has_heading),
     search: Search::Plane(PlaneSearch {
         parameters: ["x_m", "y_m"],
-        // Three quarters of the hull's length: a mast at the bow or the
-        // stern, from a reference point anywhere on the hull.
-        half_width_m: |p| 0.75 * p.length_m,
+        // The offset is found against the profile's antenna, and the
+        // antenna it gives is on the hull: a fit that runs to the hull's
+        // edge wants the antenna off it (OUTSIDE_HULL).
+        bounds_m: on_the_hull,
         grid: 8,
         practical: |acc| acc.min_lever_arm_m,
     }),
 };
+
+/// The lever arm's range: the offsets from the profile's antenna that keep
+/// the antenna within the hull's length and beam about the reference point
+/// (the bounds a profile's antenna is validated against).
+fn on_the_hull(p: &VesselParams) -> [(f64, f64); 2] {
+    let half = [0.5 * p.length_m, 0.5 * p.beam_m];
+    [0, 1].map(|i| (-half[i] - p.antenna_m[i], half[i] - p.antenna_m[i]))
+}
 
 static STW_SCALE: CauseSpec = CauseSpec {
     name: "stw_scale",
@@ -840,8 +849,14 @@ mod tests {
         let Search::Plane(p) = &Cause::LeverArm.spec().search else {
             panic!("the lever arm is a plane");
         };
-        let otter = VesselParams::default();
-        assert_eq!((p.half_width_m)(&otter), 0.75 * otter.length_m);
+        let mut otter = VesselParams::default();
+        assert_eq!((p.bounds_m)(&otter), [(-1.0, 1.0), (-0.54, 0.54)]);
+        // Found against the profile's antenna: the offsets that keep the
+        // antenna within the 2 m x 1.08 m hull.
+        otter.antenna_m = [0.25, -0.5];
+        let [(x_lo, x_hi), (y_lo, y_hi)] = (p.bounds_m)(&otter);
+        assert_eq!((x_lo, x_hi), (-1.25, 0.75));
+        assert!((y_lo - -0.04).abs() < 1e-12 && (y_hi - 1.04).abs() < 1e-12);
     }
 
     #[test]

@@ -984,16 +984,15 @@ fn fit_plane(ctx: &Ctx<'_>, train: Hypothesis, cause: Cause, search: &PlaneSearc
         h.effects.antenna_m = [x, y];
         h
     };
-    let half_width_m = (search.half_width_m)(&ctx.config.twin.kinetic.params);
-    let (lo, hi) = (-half_width_m, half_width_m);
-    let y0 = train.effects.antenna_m[1];
-    let (x, sx) = minimise_1d(&|v| ctx.train_nll(&with(v, y0)), lo, hi, search.grid);
-    let (y, sy) = minimise_1d(&|v| ctx.train_nll(&with(x, v)), lo, hi, search.grid);
+    let [(x_lo, x_hi), (y_lo, y_hi)] = (search.bounds_m)(&ctx.config.twin.kinetic.params);
+    let y0 = train.effects.antenna_m[1].clamp(y_lo, y_hi);
+    let (x, sx) = minimise_1d(&|v| ctx.train_nll(&with(v, y0)), x_lo, x_hi, search.grid);
+    let (y, sy) = minimise_1d(&|v| ctx.train_nll(&with(x, v)), y_lo, y_hi, search.grid);
     let mut h = with(x, y);
     let out = ctx.pass(&h, true);
     h.fix_states(&out.at_split);
     let size = x.hypot(y);
-    let on_edge = near_edge(x, lo, hi) || near_edge(y, lo, hi);
+    let on_edge = near_edge(x, x_lo, x_hi) || near_edge(y, y_lo, y_hi);
     let sd = if size > 1e-9 {
         ((x * sx).powi(2) + (y * sy).powi(2)).sqrt() / size
     } else {
