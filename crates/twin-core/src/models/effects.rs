@@ -176,6 +176,85 @@ pub fn gnss_measurement_linearised(
     (measured, jacobian)
 }
 
+/// A hull's motion as the models' states hold it: the body origin's
+/// position, the heading, the velocities through the water in the body
+/// frame, the yaw rate and the current over the ground.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BodyMotion {
+    /// North, m.
+    pub north_m: f64,
+    /// East, m.
+    pub east_m: f64,
+    /// Heading, rad.
+    pub heading_rad: f64,
+    /// Surge velocity through the water, m/s.
+    pub surge_mps: f64,
+    /// Sway velocity through the water, m/s.
+    pub sway_mps: f64,
+    /// Yaw rate, rad/s.
+    pub yaw_rate_radps: f64,
+    /// Current over the ground, north, m/s.
+    pub current_north_mps: f64,
+    /// Current over the ground, east, m/s.
+    pub current_east_mps: f64,
+}
+
+/// The columns of [`gnss_measurement_of_body`]'s Jacobian: the
+/// [`BodyMotion`] fields in their declared order.
+pub mod body {
+    /// [`super::BodyMotion::north_m`].
+    pub const NORTH: usize = 0;
+    /// [`super::BodyMotion::east_m`].
+    pub const EAST: usize = 1;
+    /// [`super::BodyMotion::heading_rad`].
+    pub const HEADING: usize = 2;
+    /// [`super::BodyMotion::surge_mps`].
+    pub const SURGE: usize = 3;
+    /// [`super::BodyMotion::sway_mps`].
+    pub const SWAY: usize = 4;
+    /// [`super::BodyMotion::yaw_rate_radps`].
+    pub const YAW_RATE: usize = 5;
+    /// [`super::BodyMotion::current_north_mps`].
+    pub const CURRENT_NORTH: usize = 6;
+    /// [`super::BodyMotion::current_east_mps`].
+    pub const CURRENT_EAST: usize = 7;
+}
+
+/// [`gnss_measurement_linearised`] of a hull's motion, its Jacobian chained
+/// through the ground velocity `g = R(psi) [u, v] + current` (rows the five
+/// measurements, columns [`body`]). Each model maps the columns onto its
+/// states: the kinetic model holds every field as a state, the water
+/// model's sway is its sideslip times the yaw rate.
+#[inline]
+pub fn gnss_measurement_of_body(b: &BodyMotion, fx: &SensorEffects) -> ([f64; 5], [[f64; 8]; 5]) {
+    let (s, c) = crate::trig::sin_cos(b.heading_rad);
+    let (u, v) = (b.surge_mps, b.sway_mps);
+    let k = Kinematics {
+        north_m: b.north_m,
+        east_m: b.east_m,
+        heading_rad: b.heading_rad,
+        yaw_rate_radps: b.yaw_rate_radps,
+        ground_north_mps: c * u - s * v + b.current_north_mps,
+        ground_east_mps: s * u + c * v + b.current_east_mps,
+    };
+    let (m, dm_dk) = gnss_measurement_linearised(&k, fx);
+    let dgn_dpsi = -s * u - c * v;
+    let dge_dpsi = c * u - s * v;
+    let mut jacobian = [[0.0; 8]; 5];
+    for (row, dm) in jacobian.iter_mut().zip(dm_dk.iter()) {
+        let (dgn, dge) = (dm[kin::GROUND_NORTH], dm[kin::GROUND_EAST]);
+        row[body::NORTH] = dm[kin::NORTH];
+        row[body::EAST] = dm[kin::EAST];
+        row[body::HEADING] = dm[kin::HEADING] + dgn * dgn_dpsi + dge * dge_dpsi;
+        row[body::SURGE] = dgn * c + dge * s;
+        row[body::SWAY] = dge * c - dgn * s;
+        row[body::YAW_RATE] = dm[kin::YAW_RATE];
+        row[body::CURRENT_NORTH] = dgn;
+        row[body::CURRENT_EAST] = dge;
+    }
+    (m, jacobian)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

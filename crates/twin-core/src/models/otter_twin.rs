@@ -68,7 +68,7 @@ use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
 use crate::geodesy::wrap_pi;
 use crate::linalg::{Pattern, mul, mul_sparse_left};
 use crate::model::{Model, Observation, Transition};
-use crate::models::effects::{Kinematics, SensorEffects, gnss_measurement_linearised, kin};
+use crate::models::effects::{BodyMotion, SensorEffects, body, gnss_measurement_of_body};
 use crate::trig;
 use crate::vessel::VesselParams;
 
@@ -926,32 +926,27 @@ impl OtterTwin {
 
     /// The measurement model, with the sensors' effects, and its Jacobian.
     fn observe_state(&self, x: &State) -> Observation<STATES, MEASUREMENTS> {
-        let (psi, u, v) = (x[idx::PSI], x[idx::U], x[idx::V]);
-        let (s, c) = trig::sin_cos(psi);
-        let k = Kinematics {
+        let motion = BodyMotion {
             north_m: x[idx::NORTH],
             east_m: x[idx::EAST],
-            heading_rad: psi,
+            heading_rad: x[idx::PSI],
+            surge_mps: x[idx::U],
+            sway_mps: x[idx::V],
             yaw_rate_radps: x[idx::R],
-            ground_north_mps: c * u - s * v + x[idx::CURRENT_NORTH],
-            ground_east_mps: s * u + c * v + x[idx::CURRENT_EAST],
+            current_north_mps: x[idx::CURRENT_NORTH],
+            current_east_mps: x[idx::CURRENT_EAST],
         };
-        let (m, dm_dk) = gnss_measurement_linearised(&k, &self.effects);
-        // The chain through the kinematics: the ground velocity depends on
-        // the heading, the velocities through the water and the current.
-        let dgn_dpsi = -s * u - c * v;
-        let dge_dpsi = c * u - s * v;
+        let (m, dm_db) = gnss_measurement_of_body(&motion, &self.effects);
         let mut jacobian = SMatrix::<f64, MEASUREMENTS, STATES>::zeros();
-        for (row, dm) in dm_dk.iter().enumerate() {
-            let (dgn, dge) = (dm[kin::GROUND_NORTH], dm[kin::GROUND_EAST]);
-            jacobian[(row, idx::NORTH)] = dm[kin::NORTH];
-            jacobian[(row, idx::EAST)] = dm[kin::EAST];
-            jacobian[(row, idx::PSI)] = dm[kin::HEADING] + dgn * dgn_dpsi + dge * dge_dpsi;
-            jacobian[(row, idx::U)] = dgn * c + dge * s;
-            jacobian[(row, idx::V)] = dge * c - dgn * s;
-            jacobian[(row, idx::R)] = dm[kin::YAW_RATE];
-            jacobian[(row, idx::CURRENT_NORTH)] = dgn;
-            jacobian[(row, idx::CURRENT_EAST)] = dge;
+        for (row, dm) in dm_db.iter().enumerate() {
+            jacobian[(row, idx::NORTH)] = dm[body::NORTH];
+            jacobian[(row, idx::EAST)] = dm[body::EAST];
+            jacobian[(row, idx::PSI)] = dm[body::HEADING];
+            jacobian[(row, idx::U)] = dm[body::SURGE];
+            jacobian[(row, idx::V)] = dm[body::SWAY];
+            jacobian[(row, idx::R)] = dm[body::YAW_RATE];
+            jacobian[(row, idx::CURRENT_NORTH)] = dm[body::CURRENT_NORTH];
+            jacobian[(row, idx::CURRENT_EAST)] = dm[body::CURRENT_EAST];
         }
         jacobian[(meas::HEADING, idx::HEADING_BIAS)] = 1.0;
         jacobian[(meas::YAW_RATE, idx::R)] = self.effects.yaw_rate_scale;

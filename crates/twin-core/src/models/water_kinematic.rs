@@ -24,7 +24,7 @@ use nalgebra::{SMatrix, SVector};
 
 use crate::geodesy::wrap_pi;
 use crate::model::{Model, Observation, Transition};
-use crate::models::effects::{Kinematics, SensorEffects, gnss_measurement_linearised, kin};
+use crate::models::effects::{BodyMotion, SensorEffects, body, gnss_measurement_of_body};
 use crate::trig;
 
 /// Index of each state component.
@@ -131,33 +131,28 @@ impl Model<7, MEASUREMENTS, 0> for WaterKinematic {
     }
 
     fn observe(&self, x: &SVector<f64, 7>) -> Observation<7, MEASUREMENTS> {
-        let (s, c) = trig::sin_cos(x[idx::PSI]);
-        let (u, k) = (x[idx::U], self.sideslip_m);
-        let v = k * x[idx::R];
-        let kinematics = Kinematics {
+        // The sideslip's sway, v = k r, is the yaw rate's.
+        let k = self.sideslip_m;
+        let motion = BodyMotion {
             north_m: x[idx::NORTH],
             east_m: x[idx::EAST],
             heading_rad: x[idx::PSI],
+            surge_mps: x[idx::U],
+            sway_mps: k * x[idx::R],
             yaw_rate_radps: x[idx::R],
-            ground_north_mps: u * c - v * s + x[idx::CURRENT_NORTH],
-            ground_east_mps: u * s + v * c + x[idx::CURRENT_EAST],
+            current_north_mps: x[idx::CURRENT_NORTH],
+            current_east_mps: x[idx::CURRENT_EAST],
         };
-        let (m, dm_dk) = gnss_measurement_linearised(&kinematics, &self.effects);
-        // The chain through the kinematics: the ground velocity depends on
-        // the heading, the speed through water, the current, and the yaw
-        // rate through the sideslip's sway (v = k r).
-        let dgn_dpsi = -u * s - v * c;
-        let dge_dpsi = u * c - v * s;
+        let (m, dm_db) = gnss_measurement_of_body(&motion, &self.effects);
         let mut jacobian = SMatrix::<f64, MEASUREMENTS, 7>::zeros();
-        for (row, dm) in dm_dk.iter().enumerate() {
-            let (dgn, dge) = (dm[kin::GROUND_NORTH], dm[kin::GROUND_EAST]);
-            jacobian[(row, idx::NORTH)] = dm[kin::NORTH];
-            jacobian[(row, idx::EAST)] = dm[kin::EAST];
-            jacobian[(row, idx::PSI)] = dm[kin::HEADING] + dgn * dgn_dpsi + dge * dge_dpsi;
-            jacobian[(row, idx::U)] = dgn * c + dge * s;
-            jacobian[(row, idx::R)] = dm[kin::YAW_RATE] + k * (dge * c - dgn * s);
-            jacobian[(row, idx::CURRENT_NORTH)] = dgn;
-            jacobian[(row, idx::CURRENT_EAST)] = dge;
+        for (row, dm) in dm_db.iter().enumerate() {
+            jacobian[(row, idx::NORTH)] = dm[body::NORTH];
+            jacobian[(row, idx::EAST)] = dm[body::EAST];
+            jacobian[(row, idx::PSI)] = dm[body::HEADING];
+            jacobian[(row, idx::U)] = dm[body::SURGE];
+            jacobian[(row, idx::R)] = dm[body::YAW_RATE] + k * dm[body::SWAY];
+            jacobian[(row, idx::CURRENT_NORTH)] = dm[body::CURRENT_NORTH];
+            jacobian[(row, idx::CURRENT_EAST)] = dm[body::CURRENT_EAST];
         }
         jacobian[(meas::STW, idx::U)] = self.stw_scale;
         jacobian[(meas::YAW_RATE, idx::R)] = self.effects.yaw_rate_scale;
