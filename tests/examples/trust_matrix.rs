@@ -23,7 +23,8 @@
 //! (`twin_tests::trust::with_identified_profile`); `--diagnosed` on the
 //! profile `twin diagnose --out` writes from the same healthy trial (the
 //! antenna and the hull's scales the diagnosis finds;
-//! `twin_tests::trust::with_diagnosed_profile`);
+//! `twin_tests::trust::diagnosed_profile`; with `--trace` it prints what
+//! was carried);
 //! `--gyro all` gives every draw a rate gyro and `--gyro none` none, the
 //! draws otherwise the same (vessel, effects, noise): run both to see what
 //! a measured yaw rate buys. `--gyro-bias-deg-s B` gives each draw's gyro a
@@ -36,7 +37,7 @@ use twin_core::decision::ThrusterStatus;
 use twin_core::twin::TwinConfig;
 use twin_tests::trust::{
     DETECT_WITHIN_S, Draw, MATRIX_OTHER_DRAWS, MATRIX_OWN_DRAWS, MATRIX_SEED, MUST_DETECT_LOSS,
-    matrix_draws, run, run_matrix_with, simulate, with_diagnosed_profile, with_identified_profile,
+    diagnosed_profile, matrix_draws, run, run_matrix_with, simulate, with_identified_profile,
     with_known_antenna,
 };
 
@@ -74,15 +75,22 @@ fn draws(own: usize, other: usize, seed: u64, told: Told) -> Vec<Draw> {
 }
 
 /// The twin's configuration for `draw`: the default, with what `told`
-/// adds.
-fn config_of(draw: &Draw, told: Told) -> Result<TwinConfig, String> {
+/// adds. With `say`, what a diagnosed profile carried is printed.
+fn config_of(draw: &Draw, told: Told, say: bool) -> Result<TwinConfig, String> {
     let mut config = TwinConfig::default();
     config.kinetic.estimate_yaw_rate_bias = !told.hold_gyro_bias;
     if told.antenna {
         config = with_known_antenna(config, draw);
     }
     if told.diagnosed {
-        config = with_diagnosed_profile(config, draw)?;
+        let diagnosed = diagnosed_profile(&config, draw)?;
+        if say {
+            println!(
+                "diagnosed profile: carried {:?}, not carried {:?}",
+                diagnosed.carried, diagnosed.not_carried
+            );
+        }
+        config = diagnosed.profile.twin_config(config);
     }
     if told.identified {
         config = with_identified_profile(config, draw)?;
@@ -167,9 +175,9 @@ fn main() -> Result<(), String> {
             .iter()
             .find(|d| d.index == i)
             .ok_or(format!("no draw {i}"))?;
-        return print_trace(draw, config_of(draw, told)?, every_s);
+        return print_trace(draw, config_of(draw, told, true)?, every_s);
     }
-    let matrix = run_matrix_with(&all, threads, |d| config_of(d, told))?;
+    let matrix = run_matrix_with(&all, threads, |d| config_of(d, told, false))?;
     println!(
         "Trust matrix: {own} draws on twin-sim, {other} on the independent simulator (seed {seed})."
     );
@@ -206,7 +214,7 @@ fn print_seeds(
     let mut failed = Vec::new();
     for seed in seeds {
         let matrix = run_matrix_with(&draws(own, other, seed, told), threads, |d| {
-            config_of(d, told)
+            config_of(d, told, false)
         })?;
         let (goal_in_time, goal_losses) = matrix.goal_detections();
         let row = [
@@ -328,7 +336,7 @@ struct OnsetWindow {
 /// start mid-trial) through its window.
 fn onset_window(seed: u64, draw: &Draw, told: Told) -> Result<OnsetWindow, String> {
     let trial = simulate(draw)?;
-    let record = run(&trial, config_of(draw, told)?);
+    let record = run(&trial, config_of(draw, told, false)?);
     let k = usize::from(draw.loss[0] < draw.loss[1]);
     let onset_s = draw.onset_s;
     let end_s = onset_s + DETECT_WITHIN_S;

@@ -1527,12 +1527,16 @@ pub fn diagnose_healthy_trial(
     Ok((start, report))
 }
 
-/// The twin's `config` on the profile `twin diagnose --out` writes from
-/// [`diagnose_healthy_trial`]: the antenna's position and the hull's
-/// scales the diagnosis finds, carried into the profile
-/// (`twin_cli::diagnose::profile_with_findings`).
-pub fn with_diagnosed_profile(config: TwinConfig, draw: &Draw) -> Result<TwinConfig, String> {
-    let (start, report) = diagnose_healthy_trial(&config, draw)?;
+/// The profile `twin diagnose --out` writes from [`diagnose_healthy_trial`]:
+/// the antenna's position and the hull's scales the diagnosis finds,
+/// carried into the starting profile
+/// (`twin_cli::diagnose::profile_with_findings`), with what was carried and
+/// what not.
+pub fn diagnosed_profile(
+    config: &TwinConfig,
+    draw: &Draw,
+) -> Result<twin_cli::diagnose::DiagnosedProfile, String> {
+    let (start, report) = diagnose_healthy_trial(config, draw)?;
     let diagnosed = twin_cli::diagnose::profile_with_findings(
         &start,
         &report.findings,
@@ -1543,7 +1547,14 @@ pub fn with_diagnosed_profile(config: TwinConfig, draw: &Draw) -> Result<TwinCon
         .profile
         .validate()
         .map_err(|e| format!("{}: {e}", draw.describe()))?;
-    Ok(diagnosed.profile.twin_config(config))
+    Ok(diagnosed)
+}
+
+/// The twin's `config` on the [`diagnosed_profile`] of `draw`'s vessel.
+pub fn with_diagnosed_profile(config: TwinConfig, draw: &Draw) -> Result<TwinConfig, String> {
+    Ok(diagnosed_profile(&config, draw)?
+        .profile
+        .twin_config(config))
 }
 
 /// [`run_matrix`] with the twin's configuration chosen per draw by
