@@ -1550,13 +1550,6 @@ pub fn diagnosed_profile(
     Ok(diagnosed)
 }
 
-/// The twin's `config` on the [`diagnosed_profile`] of `draw`'s vessel.
-pub fn with_diagnosed_profile(config: TwinConfig, draw: &Draw) -> Result<TwinConfig, String> {
-    Ok(diagnosed_profile(&config, draw)?
-        .profile
-        .twin_config(config))
-}
-
 /// [`run_matrix`] with the twin's configuration chosen per draw by
 /// `config_of` (e.g. [`with_known_antenna`], [`with_identified_profile`]).
 pub fn run_matrix_with(

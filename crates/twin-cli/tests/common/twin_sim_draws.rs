@@ -89,19 +89,18 @@ pub fn apply(sc: &mut Scenario, h: Hidden) {
 /// The diagnosis of `sc`'s simulated log, read as a user's log under
 /// `name` (also its file's name under `TWIN_KEEP_DRAWS`).
 pub fn diagnose_scenario(sc: &Scenario, name: &str) -> DiagnoseReport {
+    diagnose_scenario_on(sc, name, &VesselProfile::otter())
+}
+
+/// [`diagnose_scenario`] on the vessel profile `profile`.
+pub fn diagnose_scenario_on(sc: &Scenario, name: &str, profile: &VesselProfile) -> DiagnoseReport {
     let (bytes, _) = simulate_to_bytes(sc, OutputFormat::JsonLines).unwrap();
     if let Some(dir) = std::env::var_os("TWIN_KEEP_DRAWS") {
         let path = Path::new(&dir).join(format!("{name}.jsonl"));
         std::fs::write(&path, &bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     }
     let log = load(Cursor::new(bytes), Path::new(name), SourceChoice::Best).unwrap();
-    diagnose_loaded(
-        name,
-        &log,
-        &DiagnoseConfig::default(),
-        &VesselProfile::otter(),
-    )
-    .unwrap()
+    diagnose_loaded(name, &log, &DiagnoseConfig::default(), profile).unwrap()
 }
 
 /// `f` over the items on two threads (the machine has two cores), the

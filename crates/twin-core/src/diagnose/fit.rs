@@ -682,6 +682,16 @@ fn near_edge(v: f64, lo: f64, hi: f64) -> bool {
     v <= lo + margin || v >= hi - margin
 }
 
+/// True when the offset `v`, searched in `[lo, hi]` (which holds 0, the
+/// neutral offset, anywhere: the antenna's range about the profile's own
+/// antenna), moved from 0 to within 2 % of the range's width of the end it
+/// moved towards. A profile's antenna that is itself at the hull's edge
+/// does not make an offset of about 0 an edge.
+fn moved_to_edge(v: f64, lo: f64, hi: f64) -> bool {
+    let margin = 0.02 * (hi - lo);
+    (v <= lo + margin && v < -margin) || (v >= hi - margin && v > margin)
+}
+
 /// Fits `cause` on the training part on top of the `accepted` hypothesis,
 /// as its declaration in the catalogue says.
 fn fit(ctx: &Ctx<'_>, accepted: &Hypothesis, cause: Cause) -> Option<Fitted> {
@@ -985,14 +995,14 @@ fn fit_plane(ctx: &Ctx<'_>, train: Hypothesis, cause: Cause, search: &PlaneSearc
         h
     };
     let [(x_lo, x_hi), (y_lo, y_hi)] = (search.bounds_m)(&ctx.config.twin.kinetic.params);
-    let y0 = train.effects.antenna_m[1].clamp(y_lo, y_hi);
+    let y0 = train.effects.antenna_m[1].max(y_lo).min(y_hi);
     let (x, sx) = minimise_1d(&|v| ctx.train_nll(&with(v, y0)), x_lo, x_hi, search.grid);
     let (y, sy) = minimise_1d(&|v| ctx.train_nll(&with(x, v)), y_lo, y_hi, search.grid);
     let mut h = with(x, y);
     let out = ctx.pass(&h, true);
     h.fix_states(&out.at_split);
     let size = x.hypot(y);
-    let on_edge = near_edge(x, x_lo, x_hi) || near_edge(y, y_lo, y_hi);
+    let on_edge = moved_to_edge(x, x_lo, x_hi) || moved_to_edge(y, y_lo, y_hi);
     let sd = if size > 1e-9 {
         ((x * sx).powi(2) + (y * sy).powi(2)).sqrt() / size
     } else {
@@ -2460,6 +2470,20 @@ mod tests {
     /// Where the likelihood jumps within the golden section's bracket (as
     /// the latency's does on a log with standstills), the search's point
     /// can be worse than the best grid point; the grid point then stands.
+    #[test]
+    fn an_offset_is_at_the_edge_only_where_it_moved_to_it() {
+        // A profile's antenna 0.53 m to starboard on a 1.08 m beam: the
+        // offsets that keep it on the hull are (-1.07, 0.01).
+        let (lo, hi) = (-1.07, 0.01);
+        assert!(!moved_to_edge(0.0, lo, hi), "no offset is no edge");
+        assert!(!moved_to_edge(0.005, lo, hi));
+        assert!(!moved_to_edge(-0.5, lo, hi));
+        assert!(moved_to_edge(-1.06, lo, hi), "to port's edge");
+        // Symmetric ranges as before: the ends are the edges.
+        assert!(moved_to_edge(0.99, -1.0, 1.0) && moved_to_edge(-0.99, -1.0, 1.0));
+        assert!(!moved_to_edge(0.9, -1.0, 1.0));
+    }
+
     #[test]
     fn a_search_never_ends_worse_than_its_best_grid_point() {
         // Lowest at the range's edge, every other point worse, with jumps of

@@ -1,6 +1,7 @@
 //! A kinematic vessel through water as an estimator base
 //! ([`WaterKinematic`]): what `diagnose` runs on logs without propeller
-//! data. It needs no vessel parameters; it has no faults.
+//! data. It needs no vessel parameters (the antenna's position comes in
+//! its sensor effects); it has no faults.
 
 use nalgebra::{SMatrix, SVector};
 

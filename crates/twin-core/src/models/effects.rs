@@ -19,9 +19,12 @@
 //!
 //! to first order in `L`. [`gnss_measurement_linearised`] gives it with
 //! its Jacobian with respect to the [`Kinematics`], analytically, with
-//! effects or without; a model chains that with the derivatives of its own
-//! kinematics. Forward differences would take eleven evaluations of the
-//! measurement a step, about a fifth of a diagnosis with a rate gyro.
+//! effects or without; [`gnss_measurement_of_body`] chains that through
+//! the ground velocity to a hull's [`BodyMotion`] (position, heading,
+//! velocities through the water, yaw rate, current), and each model maps
+//! its columns onto its own states. Forward differences would take eleven
+//! evaluations of the measurement a step, about a fifth of a diagnosis
+//! with a rate gyro.
 
 /// Effects on the measurement.
 #[derive(Debug, Clone, Copy, PartialEq)]
