@@ -2467,9 +2467,8 @@ mod tests {
         assert!((x - 0.7).abs() < (x_golden - 0.7).abs(), "{x} {x_golden}");
     }
 
-    /// Where the likelihood jumps within the golden section's bracket (as
-    /// the latency's does on a log with standstills), the search's point
-    /// can be worse than the best grid point; the grid point then stands.
+    /// A lever arm's range is the hull about the profile's antenna, so 0
+    /// can lie near one end; the fit is at an edge only where it moved there.
     #[test]
     fn an_offset_is_at_the_edge_only_where_it_moved_to_it() {
         // A profile's antenna 0.53 m to starboard on a 1.08 m beam: the
@@ -2479,11 +2478,14 @@ mod tests {
         assert!(!moved_to_edge(0.005, lo, hi));
         assert!(!moved_to_edge(-0.5, lo, hi));
         assert!(moved_to_edge(-1.06, lo, hi), "to port's edge");
-        // Symmetric ranges as before: the ends are the edges.
+        // On a range symmetric about 0, the ends are the edges.
         assert!(moved_to_edge(0.99, -1.0, 1.0) && moved_to_edge(-0.99, -1.0, 1.0));
         assert!(!moved_to_edge(0.9, -1.0, 1.0));
     }
 
+    /// Where the likelihood jumps within the golden section's bracket (as
+    /// the latency's does on a log with standstills), the search's point
+    /// can be worse than the best grid point; the grid point then stands.
     #[test]
     fn a_search_never_ends_worse_than_its_best_grid_point() {
         // Lowest at the range's edge, every other point worse, with jumps of

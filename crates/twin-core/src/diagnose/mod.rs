@@ -46,8 +46,8 @@
 //!    named is fitted in its place: one that explains the held-out data
 //!    better by `min_gain_nll`, or as well with fewer parameters, without
 //!    forecasting worse, replaces it (the greedy order can name first what
-//!    imitates two effects at once), and one whose refit no longer clears its bars is
-//!    dropped. A part of a cause that another cause imitates exactly on
+//!    imitates two effects at once), and one whose refit no longer clears
+//!    its bars is dropped. A part of a cause that another cause imitates exactly on
 //!    steady motion (the loss both propellers share, and the hull's
 //!    resistance) is fitted with that cause beside it, as a candidate of
 //!    its own in each round, and once more at the end; where the data do

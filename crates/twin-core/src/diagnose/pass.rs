@@ -308,18 +308,12 @@ pub(super) fn kinetic_pass(prep: &Prepared, hyp: &Hypothesis, opts: PassOptions<
 /// Runs the water base with the hypothesis `hyp` over the log.
 pub(super) fn water_pass(prep: &Prepared, hyp: &Hypothesis, opts: PassOptions<'_>) -> PassOut {
     let c = opts.config;
-    // The profile's antenna position, and any lever arm a search adds to
-    // it, as on the kinetic base.
-    let mut effects = hyp.effects;
-    for (arm, profile) in effects
-        .antenna_m
-        .iter_mut()
-        .zip(c.twin.kinetic.params.antenna_m)
-    {
-        *arm += profile;
-    }
     let options = WaterOptions {
-        effects,
+        // The profile's antenna position, and any lever arm a search adds
+        // to it, as on the kinetic base.
+        effects: hyp
+            .effects
+            .with_antenna_from(c.twin.kinetic.params.antenna_m),
         stw_scale: hyp.stw_scale,
         sideslip_m: hyp.sideslip_m,
         current: hyp.current,

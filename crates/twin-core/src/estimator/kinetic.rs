@@ -528,10 +528,7 @@ impl KineticBase {
             hold(fault::MASS);
         }
         // The profile's antenna position, and any lever arm a search adds to it.
-        let mut effects = options.effects;
-        for (arm, profile) in effects.antenna_m.iter_mut().zip(config.params.antenna_m) {
-            *arm += profile;
-        }
+        let effects = options.effects.with_antenna_from(config.params.antenna_m);
         let model = OtterTwin::new(config.params).with_effects(effects);
         Ok(Self {
             filter: Aekf::new(model, filter)?,

@@ -65,6 +65,16 @@ impl SensorEffects {
         *self == Self::default()
     }
 
+    /// These effects with their antenna offset (a lever arm, as diagnose
+    /// searches it) taken from the profile's antenna at `profile_antenna_m`
+    /// `[forward, starboard]`, m: the antenna the model measures at.
+    pub fn with_antenna_from(mut self, profile_antenna_m: [f64; 2]) -> Self {
+        for (arm, profile) in self.antenna_m.iter_mut().zip(profile_antenna_m) {
+            *arm += profile;
+        }
+        self
+    }
+
     /// What the rate sensor reads at the true yaw rate `yaw_rate_radps`.
     pub fn yaw_rate_reading(&self, yaw_rate_radps: f64) -> f64 {
         self.yaw_rate_scale * yaw_rate_radps + self.yaw_rate_bias_radps
