@@ -4,7 +4,7 @@
 //! this command's).
 //!
 //! ```text
-//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I [--every S]] [--onsets] [--list] [--known-antenna] [--identified] [--diagnosed] [--gyro all|none] [--gyro-bias-deg-s B] [--hold-gyro-bias]
+//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I [--every S]] [--onsets] [--list] [--known-antenna] [--identified] [--diagnosed] [--gyro all|none] [--gyro-bias-deg-s B] [--hold-gyro-bias] [--calm]
 //! ```
 //!
 //! `--trace I` prints what the twin published over draw `I`, every 10 s
@@ -31,7 +31,10 @@
 //! bias of B deg/s, its sign alternating from draw to draw (the matrix's
 //! own gyros have none); `--hold-gyro-bias` has the twin read every rate
 //! sensor as exact (`KineticConfig::estimate_yaw_rate_bias` off) instead
-//! of estimating its bias.
+//! of estimating its bias. `--calm` sails every draw in water without
+//! random forces (on both simulators), the draws otherwise the same: what
+//! an estimate keeps there is the vessel's difference from its profile,
+//! and what it loses is the disturbance of the moment.
 
 use twin_core::decision::ThrusterStatus;
 use twin_core::twin::TwinConfig;
@@ -57,6 +60,8 @@ struct Told {
     gyro_bias_deg_s: f64,
     /// The twin reads the rate sensor as exact.
     hold_gyro_bias: bool,
+    /// Every draw in water without random forces.
+    calm_water: bool,
 }
 
 /// The matrix's draws of `seed`, with the gyro `told` sets.
@@ -70,6 +75,7 @@ fn draws(own: usize, other: usize, seed: u64, told: Told) -> Vec<Draw> {
     for (i, d) in all.iter_mut().enumerate() {
         let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
         d.gyro_bias_deg_s = sign * told.gyro_bias_deg_s;
+        d.calm_water = told.calm_water;
     }
     all
 }
@@ -129,6 +135,7 @@ fn main() -> Result<(), String> {
             "--identified" => told.identified = true,
             "--diagnosed" => told.diagnosed = true,
             "--hold-gyro-bias" => told.hold_gyro_bias = true,
+            "--calm" => told.calm_water = true,
             "--gyro" => {
                 told.gyro = match args.next().as_deref() {
                     Some("all") => Some(true),

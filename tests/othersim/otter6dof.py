@@ -105,7 +105,8 @@ What is around the model (all this simulator's own)
   n = sign(T) sqrt(|T| / k). The autopilot runs at 10 Hz on the true state
   and knows nothing of losses (its integrators make up for them).
   Disturbance: first-order Gauss-Markov forces in the body frame (surge
-  2 N, sway 3 N, roll 1 N m, pitch 1 N m, yaw 0.5 N m; correlation 4 s).
+  2 N, sway 3 N, roll 1 N m, pitch 1 N m, yaw 0.5 N m; correlation 4 s);
+  none with --calm.
   Sensors (each its own random stream):
     GNSS, 5 Hz: the antenna 0.5 m above the waterline on the centre line at
       midships (it swings with roll and pitch), white position noise 0.3 m per
@@ -1203,6 +1204,11 @@ def parse_args(argv):
         action="store_true",
         help="also apply the payload's weight as an external force, as otter.py does",
     )
+    ap.add_argument(
+        "--calm",
+        action="store_true",
+        help="no random forces of the water (the disturbance's sigmas zero)",
+    )
     ap.add_argument("--out", help="the JSON-lines log to write")
     ap.add_argument("--truth", help="the truth JSON to write")
     ap.add_argument(
@@ -1252,6 +1258,8 @@ def main(argv=None) -> int:
         shaft_period_s=1.0 / args.shaft_rate_hz,
         scales=vessel_scales(args),
     )
+    if args.calm:
+        cfg.disturbance_sigma = (0.0,) * 6
     lines, truth = simulate(cfg, fx)
     with open(args.out, "w", encoding="utf-8") as f:
         f.write("\n".join(lines))

@@ -260,6 +260,11 @@ pub struct Draw {
     pub duration_s: f64,
     /// The direction of a steady turn: +1 to starboard, -1 to port.
     pub turn_sign: f64,
+    /// Whether the water's random forces are off (the matrix's own draws
+    /// have them): what the disturbance of the moment writes into an
+    /// estimate is then told from what the vessel's difference from its
+    /// profile writes.
+    pub calm_water: bool,
 }
 
 impl Draw {
@@ -357,6 +362,9 @@ impl Draw {
                 format!(", gyro biased {:+.2} deg/s", self.gyro_bias_deg_s)
             }
         );
+        if self.calm_water {
+            s.push_str(", calm water");
+        }
         s
     }
 }
@@ -433,6 +441,7 @@ fn draw(rng: &mut StdRng, simulator: Simulator, index: usize, class: Class) -> D
         gyro_bias_deg_s: 0.0,
         duration_s: if class.straight() { 180.0 } else { 300.0 },
         turn_sign: 1.0,
+        calm_water: false,
     };
     match class {
         Class::Healthy | Class::Straight => {}
@@ -562,7 +571,11 @@ fn with_draw(draw: &Draw, mut sc: Scenario) -> Scenario {
     sc.propellers.starboard.loss = draw.loss[1];
     sc.propellers.port.onset_s = draw.onset_s;
     sc.propellers.starboard.onset_s = draw.onset_s;
-    sc.disturbance = Some(twin_sim::DisturbanceSpec::default());
+    sc.disturbance = Some(if draw.calm_water {
+        twin_sim::DisturbanceSpec::calm()
+    } else {
+        twin_sim::DisturbanceSpec::default()
+    });
     sc.sensors.heading.enabled = true;
     sc.sensors.heading.offset_deg = draw.heading_offset_deg;
     sc.sensors.gnss.latency_s = -draw.latency_s;
@@ -642,6 +655,9 @@ fn simulate_other(draw: &Draw) -> Result<Trial, String> {
     if draw.gyro {
         cmd.arg("--gyro");
         cmd.arg(format!("--gyro-bias-deg-s={}", draw.gyro_bias_deg_s));
+    }
+    if draw.calm_water {
+        cmd.arg("--calm");
     }
     if draw.heading_offset_deg != 0.0 {
         cmd.arg(format!("--heading-offset-deg={}", draw.heading_offset_deg));
