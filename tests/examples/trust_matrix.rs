@@ -300,11 +300,13 @@ fn print_trace(draw: &Draw, config: TwinConfig, every_s: f64) -> Result<(), Stri
             .profile_mismatch
             .map(|m| {
                 format!(
-                    "  mismatch: yaw damping {:+.2} (bound {:.2}), mass {:+.2} (bound {:.2}), NIS/dof {:.2} (bound {:.2})",
+                    "  mismatch: yaw damping {:+.2} (bound {:.2}), mass {:+.2} (bound {:.2}), thrust {:+.2} (bound {:.2}), NIS/dof {:.2} (bound {:.2})",
                     m.yaw_damping_error,
                     m.yaw_damping_bound,
                     m.mass_error,
                     m.mass_bound,
+                    m.thrust_error,
+                    m.thrust_bound,
                     m.nis_per_dof,
                     m.max_nis_per_dof
                 )

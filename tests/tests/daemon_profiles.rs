@@ -226,6 +226,7 @@ async fn a_profile_identified_from_a_healthy_trial_finds_a_later_port_loss_in_th
     assert!(
         mismatch.yaw_damping_error.abs() > mismatch.yaw_damping_bound
             || mismatch.mass_error.abs() > mismatch.mass_bound
+            || mismatch.thrust_error.abs() > mismatch.thrust_bound
             || mismatch.nis_per_dof > mismatch.max_nis_per_dof,
         "{mismatch:?}"
     );

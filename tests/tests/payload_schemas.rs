@@ -206,7 +206,8 @@ fn the_validator_refuses_payloads_that_break_the_contract() {
     let mut withheld = fault.clone();
     withheld["profile_mismatch"] = serde_json::json!({
         "yaw_damping_error": 1.24, "yaw_damping_bound": 0.75, "mass_error": 0.06,
-        "mass_bound": 0.75, "nis_per_dof": 0.66, "max_nis_per_dof": 2.0
+        "mass_bound": 0.75, "thrust_error": -0.12, "thrust_bound": 0.62,
+        "nis_per_dof": 0.66, "max_nis_per_dof": 2.0
     });
     payloads.insert(
         "fault".to_string(),

@@ -34,6 +34,8 @@ const MISMATCH = {
   yaw_damping_bound: 0.75,
   mass_error: 0.06,
   mass_bound: 0.75,
+  thrust_error: -0.12,
+  thrust_bound: 0.62,
   nis_per_dof: 0.66,
   max_nis_per_dof: 2.0,
 };

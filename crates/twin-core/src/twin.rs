@@ -459,7 +459,8 @@ struct SeedEstimator {
 }
 
 /// What shows that a vessel's profile does not describe it: the extended
-/// twin's yaw damping and mass errors with the most each may be
+/// twin's yaw damping, mass and thrust coefficient errors with the most
+/// each may be
 /// ([`KineticConfig::plausible_profile_sigmas`] of its prior), and the NIS
 /// per degree of freedom over the filter's memory with its bound
 /// ([`KineticConfig::max_explained_nis_per_dof`]).
@@ -473,6 +474,11 @@ pub struct ProfileMismatch {
     pub mass_error: f64,
     /// The largest it may be.
     pub mass_bound: f64,
+    /// The relative error of the profile's thrust coefficient the filter
+    /// reached.
+    pub thrust_error: f64,
+    /// The largest it may be.
+    pub thrust_bound: f64,
     /// The NIS per degree of freedom over the filter's memory.
     pub nis_per_dof: f64,
     /// The largest it may be.
@@ -515,9 +521,10 @@ impl KineticEstimator {
     }
 
     /// Where the profile no longer describes the vessel well enough for the
-    /// yaw balance to compare the propellers, what shows it: a yaw damping
-    /// or mass error beyond [`KineticConfig::plausible_profile_sigmas`] of
-    /// its prior, or data unexplained
+    /// yaw balance to compare the propellers, what shows it: a yaw damping,
+    /// mass or thrust coefficient error beyond
+    /// [`KineticConfig::plausible_profile_sigmas`] of its prior, or data
+    /// unexplained
     /// ([`KineticConfig::max_explained_nis_per_dof`]); `None` where it does.
     fn profile_mismatch(
         &self,
@@ -532,11 +539,21 @@ impl KineticEstimator {
             yaw_damping_bound: bound(fault::YAW_DAMPING),
             mass_error: state.theta[fault::MASS],
             mass_bound: bound(fault::MASS),
+            thrust_error: state.theta[fault::THRUST],
+            // An identification holds the thrust coefficient (the force
+            // scale it identifies the rest against), so the small standard
+            // deviation it gives it is no measure of how far the filter may
+            // move it: a loss's common part moves it too (a port loss of
+            // 0.25 took it to +0.23 on an identified profile). Beyond an
+            // unidentified profile's bound, more than one propeller's loss
+            // can account for, the profile no longer describes the vessel.
+            thrust_bound: bound(fault::THRUST).max(k * KineticConfig::UNIDENTIFIED_PROFILE_SIGMA),
             nis_per_dof: self.nis_per_dof(),
             max_nis_per_dof: config.max_explained_nis_per_dof,
         };
         let describes = m.yaw_damping_error.abs() <= m.yaw_damping_bound
             && m.mass_error.abs() <= m.mass_bound
+            && m.thrust_error.abs() <= m.thrust_bound
             && m.nis_per_dof <= m.max_nis_per_dof;
         (!describes).then_some(m)
     }
@@ -1696,5 +1713,56 @@ mod tests {
         healthy.on_gnss(&next).expect("a working filter accepts it");
         assert_ne!(healthy.seed.state.unwrap().x, seed_before);
         assert_ne!(healthy.propellers.count(), samples_before);
+    }
+
+    /// The extended twin of [`twin_with_both_estimators`] with its profile's
+    /// yaw damping and mass errors at zero and its thrust coefficient's at
+    /// `thrust_error`.
+    fn with_thrust_error(twin: &mut VesselTwin, thrust_error: f64) {
+        let state = twin.kinetic.state.as_mut().expect("the extended twin runs");
+        state.theta[fault::THRUST] = thrust_error;
+        state.theta[fault::YAW_DAMPING] = 0.0;
+        state.theta[fault::MASS] = 0.0;
+    }
+
+    #[test]
+    fn a_thrust_error_past_its_bound_withholds_the_comparison() {
+        let mut twin = twin_with_both_estimators(40, false);
+        let bound = 2.5 * KineticConfig::UNIDENTIFIED_PROFILE_SIGMA;
+        with_thrust_error(&mut twin, 0.9 * bound);
+        assert_eq!(twin.profile_mismatch(), None);
+        // A filter that answers a loss by moving its thrust coefficient
+        // far reads the yaw balance off a profile it no longer believes.
+        with_thrust_error(&mut twin, -1.1 * bound);
+        let m = twin
+            .profile_mismatch()
+            .expect("the thrust error is past its bound");
+        assert_eq!((m.thrust_error, m.thrust_bound), (-1.1 * bound, bound));
+        let report = twin.fault_report(1010.0);
+        assert!(report.thrusters.iter().all(|t| !t.relative_excited));
+        assert_eq!(report.profile_mismatch, Some(m));
+    }
+
+    #[test]
+    fn an_identified_profile_keeps_the_thrust_bound_of_an_unidentified_one() {
+        // An identification holds the thrust coefficient and gives it a
+        // small standard deviation; the bound stays an unidentified
+        // profile's, while the yaw damping's narrows with its own.
+        let config = TwinConfig::identified([0.05; 4]);
+        let mut twin = VesselTwin::new(config).unwrap();
+        let source = twin_with_both_estimators(40, false);
+        twin.kinetic.state = source.kinetic.state;
+        twin.kinetic.nis_moments = source.kinetic.nis_moments;
+        with_thrust_error(&mut twin, 0.3);
+        assert_eq!(twin.profile_mismatch(), None);
+        with_thrust_error(&mut twin, 0.7);
+        let m = twin
+            .profile_mismatch()
+            .expect("the thrust error is past its bound");
+        assert_eq!(
+            m.thrust_bound,
+            2.5 * KineticConfig::UNIDENTIFIED_PROFILE_SIGMA
+        );
+        assert!((m.yaw_damping_bound - 2.5 * 0.05).abs() < 1e-12);
     }
 }

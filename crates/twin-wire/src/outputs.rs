@@ -244,18 +244,27 @@ pub struct FaultMessage {
 }
 
 /// The figures that show a profile does not describe the vessel: how far
-/// the filter moved the profile's yaw damping and mass, and how well the
-/// model fits, each with its bound (docs/model.md section 10).
+/// the filter moved the profile's yaw damping, mass and thrust
+/// coefficient, and how well the model fits, each with its bound
+/// (docs/model.md section 10).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ProfileMismatchMessage {
     /// The relative error of the profile's yaw damping the filter reached.
     pub yaw_damping_error: f64,
-    /// The largest it may be (three of its prior standard deviations).
+    /// The largest it may be (`KineticConfig::plausible_profile_sigmas`,
+    /// two and a half, of its prior standard deviation).
     pub yaw_damping_bound: f64,
     /// The relative error of the profile's mass the filter reached.
     pub mass_error: f64,
     /// The largest it may be.
     pub mass_bound: f64,
+    /// The relative error of the profile's thrust coefficient the filter
+    /// reached (read as 0 from a payload without it).
+    #[serde(default)]
+    pub thrust_error: f64,
+    /// The largest it may be (read as 0 from a payload without it).
+    #[serde(default)]
+    pub thrust_bound: f64,
     /// The NIS per degree of freedom over the filter's memory.
     pub nis_per_dof: f64,
     /// The largest it may be.
@@ -268,11 +277,13 @@ impl std::fmt::Display for ProfileMismatchMessage {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "yaw damping error {:+.2}, at most +-{:.2}; mass error {:+.2}, at most +-{:.2}; NIS per dof over the last minute {:.2}, at most {:.1}",
+            "yaw damping error {:+.2}, at most +-{:.2}; mass error {:+.2}, at most +-{:.2}; thrust coefficient error {:+.2}, at most +-{:.2}; NIS per dof over the last minute {:.2}, at most {:.1}",
             self.yaw_damping_error,
             self.yaw_damping_bound,
             self.mass_error,
             self.mass_bound,
+            self.thrust_error,
+            self.thrust_bound,
             self.nis_per_dof,
             self.max_nis_per_dof
         )
@@ -286,6 +297,8 @@ impl From<&ProfileMismatch> for ProfileMismatchMessage {
             yaw_damping_bound: m.yaw_damping_bound,
             mass_error: m.mass_error,
             mass_bound: m.mass_bound,
+            thrust_error: m.thrust_error,
+            thrust_bound: m.thrust_bound,
             nis_per_dof: m.nis_per_dof,
             max_nis_per_dof: m.max_nis_per_dof,
         }

@@ -865,6 +865,8 @@ mod tests {
             yaw_damping_bound: 0.75,
             mass_error: -0.52,
             mass_bound: 0.75,
+            thrust_error: 0.1,
+            thrust_bound: 0.62,
             nis_per_dof: 0.8,
             max_nis_per_dof: 2.0,
         });
@@ -879,7 +881,7 @@ mod tests {
             assert_eq!(
                 value["message"],
                 format!(
-                    "{side} thruster nominal: loss {} % (sigma 2 %); comparison withheld, the profile does not describe this vessel (yaw damping error +0.91, at most +-0.75; mass error -0.52, at most +-0.75; NIS per dof over the last minute 0.80, at most 2.0)",
+                    "{side} thruster nominal: loss {} % (sigma 2 %); comparison withheld, the profile does not describe this vessel (yaw damping error +0.91, at most +-0.75; mass error -0.52, at most +-0.75; thrust coefficient error +0.10, at most +-0.62; NIS per dof over the last minute 0.80, at most 2.0)",
                     if i == 0 { 20 } else { 0 }
                 )
             );

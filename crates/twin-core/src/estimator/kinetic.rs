@@ -108,13 +108,18 @@ pub struct KineticConfig {
     /// [`Self::min_yaw_rate_spread`], rad/s.
     pub straight_yaw_rate_radps: f64,
     /// The comparison of the propellers is read off the yaw balance as the
-    /// profile writes it (yaw inertia, yaw damping). It counts as excited
-    /// only while the filter's yaw damping and mass errors are within this
-    /// many of their prior standard deviations ([`Self::profile_sigma`]):
-    /// further out the profile does not describe the vessel, and the
-    /// comparison absorbs what it lacks (a vessel twice its profile's mass,
-    /// healthy, read a relative loss of 0.27 +- 0.03 with the filter's mass
-    /// error at its floor; docs/model.md section 10).
+    /// profile writes it (yaw inertia, yaw damping, the propellers'
+    /// thrust). It counts as excited only while the filter's yaw damping,
+    /// mass and thrust coefficient errors are within this many of their
+    /// prior standard deviations ([`Self::profile_sigma`]; for the thrust
+    /// coefficient never fewer than of an unidentified profile's,
+    /// [`Self::UNIDENTIFIED_PROFILE_SIGMA`]): further out the profile does
+    /// not describe the vessel, and the comparison absorbs what it lacks (a
+    /// vessel twice its profile's mass, healthy, read a relative loss of
+    /// 0.27 +- 0.03 with the filter's mass error at its floor; a starboard
+    /// loss of 0.39 that the filter answered by moving its thrust and surge
+    /// damping errors to -0.8 read the healthy port propeller as a loss of
+    /// 0.19 +- 0.05; docs/model.md section 10).
     pub plausible_profile_sigmas: f64,
     /// The same while the filter explains the data: its NIS per degree of
     /// freedom, averaged over the filter's memory, at most this.
@@ -204,7 +209,7 @@ impl KineticConfig {
             0.0087 * 0.0087,
             0.0087 * 0.0087,
         ]);
-        let profile_sigma = [0.25, 0.25, 0.25, 0.25];
+        let profile_sigma = [Self::UNIDENTIFIED_PROFILE_SIGMA; 4];
         Self {
             params: VesselParams::default(),
             filter: AekfConfig {
@@ -256,6 +261,11 @@ impl KineticConfig {
     /// trust matrix in `tests/src/trust.rs`), which the filter must take as
     /// noise rather than pin on the losses.
     pub const UNMODELLED_FORCE_FACTOR: f64 = 5.0;
+
+    /// The relative standard deviation of each of an unidentified
+    /// profile's errors (surge and yaw damping, thrust coefficient, mass):
+    /// what a profile from drawings and rules of thumb promises.
+    pub const UNIDENTIFIED_PROFILE_SIGMA: f64 = 0.25;
 
     /// [`Self::otter_with`] for the vessel `params` describes: its
     /// parameters, and the velocities' process noise of harbour water on a

@@ -428,12 +428,14 @@ mod tests {
             yaw_damping_bound: 0.75,
             mass_error: 0.06,
             mass_bound: 0.75,
+            thrust_error: -0.12,
+            thrust_bound: 0.62,
             nis_per_dof: 0.66,
             max_nis_per_dof: 2.0,
         });
         assert_eq!(
             mismatch_of(&fault),
-            "yaw damping error +1.24, at most +-0.75; mass error +0.06, at most +-0.75; NIS per dof over the last minute 0.66, at most 2.0"
+            "yaw damping error +1.24, at most +-0.75; mass error +0.06, at most +-0.75; thrust coefficient error -0.12, at most +-0.62; NIS per dof over the last minute 0.66, at most 2.0"
         );
     }
 
