@@ -150,9 +150,6 @@ pub struct Identification {
     pub heldout_steps: usize,
 }
 
-/// Relative standard deviation given to the twin for a parameter the trial
-/// did not identify: an uncalibrated profile's.
-const UNIDENTIFIED_SIGMA: f64 = 0.25;
 /// The smallest relative standard deviation given to the twin for an
 /// identified parameter: what one trial in one sea state can promise (the
 /// likelihood's curvature knows nothing of what the model itself lacks).
@@ -432,7 +429,8 @@ pub fn identify(
     let given = |e: &ParameterEstimate| match e {
         e if e.held => MIN_IDENTIFIED_SIGMA,
         e if e.identified => e.sigma.max(MIN_IDENTIFIED_SIGMA),
-        _ => UNIDENTIFIED_SIGMA,
+        // Not identified: an uncalibrated profile's.
+        _ => KineticConfig::UNIDENTIFIED_PROFILE_SIGMA,
     };
     // The twin's mass-and-inertia error stands for both: the larger.
     let profile_sigma = [

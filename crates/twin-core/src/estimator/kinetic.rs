@@ -111,9 +111,9 @@ pub struct KineticConfig {
     /// profile writes it (yaw inertia, yaw damping, the propellers'
     /// thrust). It counts as excited only while the filter's yaw damping,
     /// mass and thrust coefficient errors are within this many of their
-    /// prior standard deviations ([`Self::profile_sigma`]; for the thrust
-    /// coefficient never fewer than of an unidentified profile's,
-    /// [`Self::UNIDENTIFIED_PROFILE_SIGMA`]): further out the profile does
+    /// prior standard deviations ([`Self::profile_sigma`]; the thrust
+    /// coefficient's bound is never narrower than an unidentified
+    /// profile's, [`Self::UNIDENTIFIED_PROFILE_SIGMA`]): further out the profile does
     /// not describe the vessel, and the comparison absorbs what it lacks (a
     /// vessel twice its profile's mass, healthy, read a relative loss of
     /// 0.27 +- 0.03 with the filter's mass error at its floor; a starboard
