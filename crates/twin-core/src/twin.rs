@@ -1728,7 +1728,8 @@ mod tests {
     #[test]
     fn a_thrust_error_past_its_bound_withholds_the_comparison() {
         let mut twin = twin_with_both_estimators(40, false);
-        let bound = 2.5 * KineticConfig::UNIDENTIFIED_PROFILE_SIGMA;
+        let bound = twin.config.kinetic.plausible_profile_sigmas
+            * KineticConfig::UNIDENTIFIED_PROFILE_SIGMA;
         with_thrust_error(&mut twin, 0.9 * bound);
         assert_eq!(twin.profile_mismatch(), None);
         // A filter that answers a loss by moving its thrust coefficient
@@ -1749,6 +1750,7 @@ mod tests {
         // small standard deviation; the bound stays an unidentified
         // profile's, while the yaw damping's narrows with its own.
         let config = TwinConfig::identified([0.05; 4]);
+        let k = config.kinetic.plausible_profile_sigmas;
         let mut twin = VesselTwin::new(config).unwrap();
         let source = twin_with_both_estimators(40, false);
         twin.kinetic.state = source.kinetic.state;
@@ -1761,8 +1763,8 @@ mod tests {
             .expect("the thrust error is past its bound");
         assert_eq!(
             m.thrust_bound,
-            2.5 * KineticConfig::UNIDENTIFIED_PROFILE_SIGMA
+            k * KineticConfig::UNIDENTIFIED_PROFILE_SIGMA
         );
-        assert!((m.yaw_damping_bound - 2.5 * 0.05).abs() < 1e-12);
+        assert!((m.yaw_damping_bound - k * 0.05).abs() < 1e-12);
     }
 }
