@@ -19,7 +19,7 @@
 //!                   uncertainty {name: standard deviation},
 //!                   evidence [text], gain {heldout_nll_gain, heldout_steps,
 //!                   nis_per_dof {before, after}, prediction_rmse_m [{horizon_s, before, after}]}}]
-//!                 an empty list when the nominal model explains the data;
+//!                 an empty list when no cause clears the bars;
 //!                 prediction_rmse_m is empty without positions (nothing to forecast against)
 //! rejected        [{cause, parameters, heldout_nll_gain, reason}]: tried, not reported
 //! unexplained     {nis_per_dof, biased [{component, bias_z}]} when the findings leave
@@ -492,7 +492,12 @@ pub fn render_text(r: &DiagnoseReport) -> String {
     if r.findings.is_empty() {
         let _ = writeln!(
             o,
-            "  findings     none: the nominal model explains the data (no cause clears the bars)"
+            "  findings     none: {}",
+            if r.unexplained.is_some() {
+                "no cause of the catalogue clears the bars"
+            } else {
+                "the nominal model explains the data (no cause clears the bars)"
+            }
         );
     }
     for (i, f) in r.findings.iter().enumerate() {
@@ -719,6 +724,63 @@ mod tests {
             }
         }))
         .unwrap()
+    }
+
+    fn residuals(nis_per_dof: f64) -> ResidualsJson {
+        ResidualsJson {
+            steps: 100,
+            mean: [0.0; COMPONENT_COUNT],
+            bias_z: [0.0; COMPONENT_COUNT],
+            rms: [0.0; COMPONENT_COUNT],
+            lag1: [0.0; COMPONENT_COUNT],
+            nis_per_dof,
+            measured: [true; COMPONENT_COUNT],
+            signatures: Vec::new(),
+        }
+    }
+
+    /// With no finding, the text says the nominal model explains the data
+    /// only where nothing is left unexplained.
+    #[test]
+    fn no_finding_is_no_explanation_where_the_residual_is_unexplained() {
+        let mut report = DiagnoseReport {
+            schema: "twin-diagnose/1",
+            log: "log.jsonl".to_string(),
+            profile: "otter@0".to_string(),
+            base_model: "kinetic",
+            steps: 250,
+            training_steps: 150,
+            heldout_steps: 100,
+            measured: MeasuredJson {
+                heading: false,
+                speed_through_water: false,
+                yaw_rate: false,
+                propellers: true,
+                position: true,
+            },
+            nominal: residuals(1.1),
+            extended: residuals(1.1),
+            findings: Vec::new(),
+            rejected: Vec::new(),
+            unexplained: None,
+            instrument: None,
+            diagnosis: None,
+        };
+        let text = render_text(&report);
+        assert!(text.contains("findings     none: the nominal model explains the data"));
+        report.nominal = residuals(437.0);
+        report.extended = residuals(437.0);
+        report.unexplained = Some(UnexplainedJson {
+            nis_per_dof: 437.0,
+            biased: Vec::new(),
+        });
+        let text = render_text(&report);
+        assert!(!text.contains("explains the data ("), "{text}");
+        assert!(
+            text.contains("findings     none: no cause of the catalogue clears the bars"),
+            "{text}"
+        );
+        assert!(text.contains("UNEXPLAINED"), "{text}");
     }
 
     #[test]

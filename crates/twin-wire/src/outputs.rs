@@ -759,7 +759,8 @@ pub struct FindingsMessage {
     /// What triggered the diagnosis: `routine` or `residuals` (the live
     /// twin's recent NIS left its band).
     pub trigger: String,
-    /// The findings; empty when the nominal model explains the data.
+    /// The findings; empty when no cause clears the bars (the nominal model
+    /// explains the data, or `unexplained` says what it leaves).
     pub findings: Vec<FindingJson>,
     /// Set when the findings leave the data unexplained (the model is wrong
     /// in a way the catalogue has no cause for); absent or null otherwise.

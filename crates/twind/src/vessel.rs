@@ -982,7 +982,11 @@ impl VesselTask {
             vessel = self.id.as_str(),
             trigger = %findings.trigger,
             "model findings: {}",
-            if causes.is_empty() { "none (the nominal model explains the data)".to_string() } else { causes.join(", ") }
+            match (causes.is_empty(), findings.unexplained.is_some()) {
+                (false, _) => causes.join(", "),
+                (true, false) => "none (the nominal model explains the data)".to_string(),
+                (true, true) => "none (no cause of the catalogue clears the bars)".to_string(),
+            }
         );
         self.published_causes = Some(causes);
         self.put_kept(

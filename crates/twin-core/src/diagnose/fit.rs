@@ -624,7 +624,62 @@ struct Fitted {
     /// The cause fitted with it for the part of its states that the other
     /// imitates ([`SharedPart`]): the two are one candidate.
     companion: Option<Box<Fitted>>,
+    /// How a scalar cause's value was found, for [`not_a_minimum`].
+    scalar_fit: Option<ScalarFit>,
 }
+
+/// A scalar cause's fit on the training part: the hypothesis it was
+/// searched on, how its value is set there, the value and its standard
+/// deviation (in the hypothesis' unit).
+#[derive(Clone, Copy)]
+struct ScalarFit {
+    train: Hypothesis,
+    set: fn(&mut Hypothesis, f64),
+    value: f64,
+    sd: f64,
+}
+
+/// Whether the training likelihood's slope at a scalar fit's value agrees
+/// with the value being its minimum: read over a thousandth of the fit's
+/// standard deviation, the slope times the standard deviation is how many
+/// standard deviations away the parabola the standard deviation stands for
+/// puts the minimum. A smooth likelihood's parabolic fit puts it within a
+/// fraction of one; a likelihood whose filter's path hangs on the smallest
+/// difference (a vessel at a standstill without a heading sensor, its
+/// heading left to the linearisation) has slopes of thousands of them
+/// between its jumps, and there neither the value nor its standard
+/// deviation says anything of the data; nor where the parabola read at the
+/// grid's scale is far narrower than the likelihood at the fit (a mass
+/// scale of 0.65 +- 0.001 on a vessel eight times the profile's mass, its
+/// minimum six of those away). The reason, where it does not agree.
+fn not_a_minimum(ctx: &Ctx<'_>, f: &Fitted) -> Option<String> {
+    let fit = f.scalar_fit?;
+    if !(fit.sd.is_finite() && fit.sd > 0.0) {
+        return None;
+    }
+    let at = |v: f64| {
+        let mut h = fit.train;
+        (fit.set)(&mut h, v);
+        ctx.train_nll(&h)
+    };
+    let delta = SLOPE_READ_OVER_SD * fit.sd;
+    let slope = (at(fit.value + delta) - at(fit.value - delta)) / (2.0 * delta);
+    let minimum_away_sd = (slope * fit.sd).abs();
+    if minimum_away_sd <= MAX_MINIMUM_AWAY_SD {
+        return None;
+    }
+    Some(format!(
+        "the training likelihood's slope at its fit puts the minimum {minimum_away_sd:.0} of its standard deviations away: the likelihood is not smooth there, or not the parabola its standard deviation stands for, so neither its size nor its standard deviation is determined"
+    ))
+}
+
+/// The width over which [`not_a_minimum`] reads the slope, in standard
+/// deviations of the fit.
+const SLOPE_READ_OVER_SD: f64 = 1e-3;
+
+/// How far from a scalar fit's value, in its standard deviations, the
+/// slope may put the minimum ([`not_a_minimum`]).
+const MAX_MINIMUM_AWAY_SD: f64 = 3.0;
 
 impl Fitted {
     /// Why its size does not clear the bars (at the edge of its search, too
@@ -774,6 +829,7 @@ impl Placed {
             beyond_physics: None,
             states: None,
             companion: None,
+            scalar_fit: None,
         }
     }
 }
@@ -844,6 +900,7 @@ fn state_fitted(
         beyond_physics: (search.beyond)(&states),
         states: Some(states),
         companion: None,
+        scalar_fit: None,
     }
 }
 
@@ -985,6 +1042,12 @@ fn fit_scalar(ctx: &Ctx<'_>, train: Hypothesis, cause: Cause, search: &ScalarSea
         beyond_physics,
         states: Some(out.at_split),
         companion: None,
+        scalar_fit: Some(ScalarFit {
+            train,
+            set: search.set,
+            value: v,
+            sd,
+        }),
     }
 }
 
@@ -1020,6 +1083,7 @@ fn fit_plane(ctx: &Ctx<'_>, train: Hypothesis, cause: Cause, search: &PlaneSearc
         beyond_physics: on_edge.then_some(OUTSIDE_HULL),
         states: Some(out.at_split),
         companion: None,
+        scalar_fit: None,
     }
 }
 
@@ -1227,18 +1291,43 @@ struct Round {
     rejected: Vec<Rejected>,
 }
 
+/// A greedy round: the `remaining` causes fitted on top of `accepted`,
+/// and the one taken ([`choose`]) against the model so far (`current`).
+fn next_round(
+    ctx: &Ctx<'_>,
+    accepted: &Hypothesis,
+    remaining: &[Cause],
+    current: &PassOut,
+) -> Round {
+    choose(
+        score_round(ctx, accepted, remaining),
+        current,
+        &ctx.config.acceptance,
+        &|f| not_a_minimum(ctx, f),
+    )
+}
+
 /// Takes, of the scored candidates that clear every bar, the one with the
 /// largest held-out gain, unless another explains the data as well (a gain
 /// within `min_gain_nll` of it) with fewer parameters, or with as many and
 /// no claim that a sensor is wrong (`CauseSpec::sensor_error`): the simpler
-/// explanation is named. The others are rejected with the bar they missed.
-fn choose(mut scored: Vec<(Fitted, PassOut)>, current: &PassOut, acc: &Acceptance) -> Round {
+/// explanation is named. A candidate about to be taken is first asked
+/// `not_a_minimum` (the training likelihood's shape at its fit, which costs
+/// passes, so only of the one about to be taken): where it answers a
+/// reason, that is the bar it misses and the choice is made again. The
+/// others are rejected with the bar they missed.
+fn choose(
+    mut scored: Vec<(Fitted, PassOut)>,
+    current: &PassOut,
+    acc: &Acceptance,
+    not_a_minimum: &dyn Fn(&Fitted) -> Option<String>,
+) -> Round {
     let current_nll_test = current.nll_test;
     let before_m = current.rmse();
     scored.sort_by(|a, b| {
         (current_nll_test - b.1.nll_test).total_cmp(&(current_nll_test - a.1.nll_test))
     });
-    let judged: Vec<(f64, Option<String>)> = scored
+    let mut judged: Vec<(f64, Option<String>)> = scored
         .iter()
         .map(|(f, out)| {
             let gain = current_nll_test - out.nll_test;
@@ -1250,16 +1339,27 @@ fn choose(mut scored: Vec<(Fitted, PassOut)>, current: &PassOut, acc: &Acceptanc
             (gain, missed_bar(f, gain, forecast_m, acc))
         })
         .collect();
-    let clearing = || (0..scored.len()).filter(|i| judged[*i].1.is_none());
-    let taken = clearing().next().map(|best| {
-        clearing()
+    let taken = loop {
+        let clearing: Vec<usize> = (0..scored.len())
+            .filter(|i| judged[*i].1.is_none())
+            .collect();
+        let Some(&best) = clearing.first() else {
+            break None;
+        };
+        let pick = clearing
+            .iter()
+            .copied()
             .filter(|i| judged[*i].0 >= judged[best].0 - acc.min_gain_nll)
             .min_by_key(|i| {
                 let f = &scored[*i].0;
                 (f.parameter_count(), f.cause.spec().sensor_error, *i)
             })
-            .unwrap_or(best)
-    });
+            .unwrap_or(best);
+        match not_a_minimum(&scored[pick].0) {
+            None => break Some(pick),
+            Some(why) => judged[pick].1 = Some(why),
+        }
+    };
     let taken_by = taken.map(|i| {
         let f = &scored[i].0;
         (f.cause.name(), judged[i].0, f.parameter_count())
@@ -1506,10 +1606,11 @@ fn refit_jointly(
         let (own, others): (Vec<_>, Vec<_>) = score_round(ctx, &base, &tried)
             .into_iter()
             .partition(|(f, _)| f.cause == old);
-        let replacement = choose(others, &base_out, acc)
+        let smooth = |f: &Fitted| not_a_minimum(ctx, f);
+        let replacement = choose(others, &base_out, acc, &smooth)
             .took
             .filter(|(f, out, _)| replaces(f, out, old, &model.out, acc));
-        let own = choose(own, &base_out, acc);
+        let own = choose(own, &base_out, acc, &smooth);
         let (f, out, gain) = match (replacement, own.took) {
             (Some(r), _) => {
                 rejected.push(Rejected {
@@ -2151,7 +2252,7 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     let mut remaining: Vec<Cause> = Cause::ALL.into_iter().filter(|c| c.applies(&log)).collect();
     let mut last_states: Option<AtSplit> = None;
     while findings.len() < config.max_findings && !remaining.is_empty() {
-        let round = choose(score_round(&ctx, &accepted, &remaining), &current_out, acc);
+        let round = next_round(&ctx, &accepted, &remaining, &current_out);
         rejected = round.rejected;
         let Some((f, out, gain)) = round.took else {
             break;
@@ -2514,6 +2615,7 @@ mod tests {
             beyond_physics: None,
             states: None,
             companion: None,
+            scalar_fit: None,
         }
     }
 
@@ -2554,6 +2656,7 @@ mod tests {
             ],
             &at(1000.0),
             &acc,
+            &|_| None,
         );
         let (f, _, gain) = round.took.expect("one clears the bars");
         assert_eq!(f.cause, Cause::HeadingOffset);
@@ -2576,6 +2679,40 @@ mod tests {
         assert!(reasons[4].1.starts_with("held-out log-likelihood gain 5.0"));
     }
 
+    /// A candidate about to be taken whose fit is not at a minimum of a
+    /// smooth likelihood is rejected with that reason, and the next that
+    /// clears every bar is taken; only candidates about to be taken are
+    /// asked.
+    #[test]
+    fn a_fit_not_at_a_minimum_is_not_taken_and_the_next_is() {
+        let acc = Acceptance::default();
+        let asked = std::cell::RefCell::new(Vec::new());
+        let rough = |f: &Fitted| {
+            asked.borrow_mut().push(f.cause);
+            (f.cause == Cause::GnssLatency).then(|| "not smooth".to_string())
+        };
+        let round = choose(
+            vec![
+                scored(fitted(Cause::Current, 0.3, 8.0), 900.0),
+                scored(fitted(Cause::GnssLatency, 0.3, 8.0), 880.0),
+                scored(fitted(Cause::SogScale, 0.3, 1.0), 860.0),
+            ],
+            &at(1000.0),
+            &acc,
+            &rough,
+        );
+        let (f, _, gain) = round.took.expect("the current clears every bar");
+        assert_eq!((f.cause, gain), (Cause::Current, 100.0));
+        assert_eq!(*asked.borrow(), [Cause::GnssLatency, Cause::Current]);
+        let latency = round
+            .rejected
+            .iter()
+            .find(|r| r.cause == Cause::GnssLatency)
+            .expect("rejected");
+        assert_eq!(latency.reason, "not smooth");
+        assert_eq!(latency.heldout_nll_gain, 120.0);
+    }
+
     /// Of two causes that explain the data as well (held-out gains within
     /// the bar of each other), the one with fewer parameters is named; a
     /// clearly larger gain still wins.
@@ -2589,6 +2726,7 @@ mod tests {
             ],
             &at(1000.0),
             &acc,
+            &|_| None,
         );
         assert_eq!(round.took.expect("taken").0.cause, Cause::SurgeDamping);
         assert!(
@@ -2605,6 +2743,7 @@ mod tests {
             ],
             &at(1000.0),
             &acc,
+            &|_| None,
         );
         assert_eq!(round.took.expect("taken").0.cause, Cause::ThrusterLoss);
         assert_eq!(
@@ -2647,6 +2786,7 @@ mod tests {
             ],
             &current,
             &acc,
+            &|_| None,
         );
         assert_eq!(round.took.expect("taken").0.cause, Cause::HeadingOffset);
         assert!(
@@ -2660,6 +2800,7 @@ mod tests {
             vec![with_forecast(fitted(Cause::Mass, 0.5, 8.0), 2.5, 12.0)],
             &current,
             &acc,
+            &|_| None,
         );
         assert_eq!(round.took.expect("taken").0.cause, Cause::Mass);
     }

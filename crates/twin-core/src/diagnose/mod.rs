@@ -37,7 +37,12 @@
 //!    deviations from none, and at least the practical size a user would
 //!    act on; of two causes whose gains are within `min_gain_nll` of each
 //!    other, the one with fewer parameters, and of two with as many, the
-//!    one that does not say a sensor is wrong. Then the others are tried again
+//!    one that does not say a sensor is wrong. A scalar cause about to be
+//!    accepted must sit at a minimum of its training likelihood: the slope
+//!    read over a thousandth of its standard deviation must put the minimum
+//!    within three of them (a likelihood that jumps, as after a standstill
+//!    without a heading sensor, gives fits and standard deviations that say
+//!    nothing of the data). Then the others are tried again
 //!    on top of it, until none clears the bars: combined effects are found
 //!    one after the other. Then each finding is judged again against the
 //!    model with all the others, and one that no longer gains

@@ -1,7 +1,9 @@
 //! A kinematic vessel through water as an estimator base
 //! ([`WaterKinematic`]): what `diagnose` runs on logs without propeller
 //! data. It needs no vessel parameters (the antenna's position comes in
-//! its sensor effects); it has no faults.
+//! its sensor effects); it has no faults. A heading lost at a standstill
+//! (no heading sensor, the course below the gate) is started afresh from
+//! the course when the vessel moves again ([`WaterBase::reacquire`]).
 
 use nalgebra::{SMatrix, SVector};
 
@@ -39,6 +41,10 @@ pub struct WaterBase {
 
 /// Initial variance of an estimated current, (m/s)^2.
 const CURRENT_PRIOR_VARIANCE: f64 = 0.25;
+
+/// Variance of a heading started from the course, rad^2 (half a radian:
+/// the course is not the heading where the vessel drifts).
+const HEADING_FROM_COURSE_VARIANCE: f64 = 0.25;
 
 impl WaterBase {
     /// The base with `options`, masking the course below `gate`'s speed. A
@@ -138,7 +144,7 @@ impl WaterBase {
             if fix.heading_rad.is_some() {
                 r[(4, 4)]
             } else {
-                0.25
+                HEADING_FROM_COURSE_VARIANCE
             },
             0.25,
             if fix.yaw_rate_radps.is_some() {
@@ -157,14 +163,46 @@ impl WaterBase {
         )
     }
 
-    /// One step to `fix`, `dt_s` after the estimate.
+    /// One step to `fix`, `dt_s` after the estimate, once the heading and
+    /// yaw rate are re-acquired where they were lost
+    /// ([`WaterBase::reacquire`]).
     pub fn step(
         &self,
         state: &mut AekfState<7, MEASUREMENTS, 0>,
         fix: &LocalFix,
         dt_s: f64,
     ) -> Result<StepReport<MEASUREMENTS, 0>, AekfError> {
+        self.reacquire(state, fix);
         self.filter.step(state, &(), &self.measurement(fix), dt_s)
+    }
+
+    /// Starts the heading and the yaw rate afresh from `fix`, as
+    /// [`WaterBase::prior`] starts them, where the heading is known less
+    /// well than a heading started from the course and `fix`'s course is
+    /// usable: the two states are replaced, their variances set to the
+    /// prior's and their covariances with the other states dropped.
+    /// Without a heading sensor, a vessel at a standstill (its course below
+    /// the gate) loses its heading: the yaw rate's process noise makes it
+    /// wander with a variance that grows past a whole turn. Updated from
+    /// there by the first usable course, the filter's linearisation is
+    /// meaningless, and where it lands depends on the smallest difference
+    /// in the estimate (a GNSS latency a nanosecond longer moved a sailing
+    /// yacht's likelihood by hundreds after a standstill). With a heading
+    /// sensor, or underway, the heading is never known that little and
+    /// nothing is changed.
+    pub fn reacquire(&self, state: &mut AekfState<7, MEASUREMENTS, 0>, fix: &LocalFix) {
+        if !self.gate.course_available(fix)
+            || state.p[(idx::PSI, idx::PSI)] <= HEADING_FROM_COURSE_VARIANCE
+        {
+            return;
+        }
+        let fresh = self.prior(fix);
+        for i in [idx::PSI, idx::R] {
+            state.x[i] = fresh.x[i];
+            state.p.row_mut(i).fill(0.0);
+            state.p.column_mut(i).fill(0.0);
+            state.p[(i, i)] = fresh.p[(i, i)];
+        }
     }
 }
 
@@ -172,6 +210,104 @@ impl WaterBase {
 mod tests {
     use super::*;
     use crate::geodesy::NorthEast;
+    use rand::{Rng, SeedableRng, rngs::StdRng};
+    use rand_distr::{Distribution, Normal};
+
+    /// The diagnosis's kinematic base: its default noise, the course gated
+    /// at 0.3 m/s.
+    fn diagnosis_base(gnss_latency_s: f64) -> WaterBase {
+        let options = WaterOptions {
+            effects: SensorEffects {
+                gnss_latency_s,
+                ..SensorEffects::default()
+            },
+            stw_scale: 1.0,
+            sideslip_m: 0.0,
+            current: Term::Free,
+            process_noise: [1e-4, 1e-4, 1e-6, 1e-2, 1e-4, 1e-6, 1e-6],
+            measurement_sigma: [0.5, 0.1, 0.05, 1f64.to_radians(), 0.1, 0.0087],
+        };
+        WaterBase::new(&options, CourseGate { min_sog_mps: 0.3 }).unwrap()
+    }
+
+    /// A yacht logged at 0.5 Hz without a heading sensor: two minutes at
+    /// 1.5 m/s northward, four at a standstill (the receiver's speed a few
+    /// cm/s, its course anything), then off at 1.5 m/s towards 120 deg; GNSS
+    /// and log noise drawn with a fixed seed.
+    fn standstill_log() -> Vec<LocalFix> {
+        let mut rng = StdRng::seed_from_u64(7);
+        let position_noise = Normal::new(0.0, 0.5).unwrap();
+        let speed_noise = Normal::new(0.0, 0.05).unwrap();
+        let course_noise = Normal::new(0.0, 0.03).unwrap();
+        let (mut north, mut east) = (0.0, 0.0);
+        let mut fixes = Vec::new();
+        for k in 0..300 {
+            let t = 2.0 * f64::from(k);
+            let (speed, course) = match t {
+                t if t < 120.0 => (1.5, 0.0),
+                t if t < 360.0 => (0.0, 0.0),
+                _ => (1.5, 120f64.to_radians()),
+            };
+            north += 2.0 * speed * f64::cos(course);
+            east += 2.0 * speed * f64::sin(course);
+            let (sog, cog) = if speed > 0.0 {
+                (
+                    speed + speed_noise.sample(&mut rng),
+                    course + course_noise.sample(&mut rng),
+                )
+            } else {
+                (
+                    f64::abs(speed_noise.sample(&mut rng)),
+                    rng.random_range(-3.1..3.1),
+                )
+            };
+            fixes.push(LocalFix {
+                time_s: t,
+                position: NorthEast {
+                    north_m: north + position_noise.sample(&mut rng),
+                    east_m: east + position_noise.sample(&mut rng),
+                },
+                position_measured: true,
+                sog_mps: Some(sog),
+                cog_rad: Some(cog),
+                heading_rad: None,
+                yaw_rate_radps: None,
+                stw_mps: Some((speed + speed_noise.sample(&mut rng)).max(0.0)),
+            });
+        }
+        fixes
+    }
+
+    /// The NIS summed over the log, and the heading estimated at its end.
+    fn run(base: &WaterBase, fixes: &[LocalFix]) -> (f64, f64) {
+        let mut state = base.prior(&fixes[0]);
+        let mut nis = 0.0;
+        for pair in fixes.windows(2) {
+            let dt = pair[1].time_s - pair[0].time_s;
+            nis += base.step(&mut state, &pair[1], dt).unwrap().nis;
+        }
+        (nis, state.x[idx::PSI])
+    }
+
+    /// A standstill without a heading sensor loses the heading; where the
+    /// course is usable again the heading is started afresh from it, so
+    /// the filter's path after the standstill does not hang on the
+    /// smallest difference of the estimate: a GNSS latency a nanosecond
+    /// longer moves the log's summed NIS (about 1600) by less than 0.001.
+    /// Without the re-acquisition that nanosecond moved it by about 0.01
+    /// here, and a yacht's real log's likelihood by hundreds.
+    #[test]
+    fn a_heading_lost_at_a_standstill_is_reacquired_from_the_course() {
+        let fixes = standstill_log();
+        let (nis, psi) = run(&diagnosis_base(0.3), &fixes);
+        let (nis_later, _) = run(&diagnosis_base(0.3 + 1e-9), &fixes);
+        assert!(
+            (nis - nis_later).abs() < 1e-3,
+            "summed NIS {nis} and {nis_later} a nanosecond of latency apart"
+        );
+        let error = crate::geodesy::wrap_pi(psi - 120f64.to_radians());
+        assert!(error.abs() < 0.1, "heading {psi} rad at the end");
+    }
 
     /// Four hours of velocities without a position at 1 Hz, turning slowly
     /// in a 0.3 m/s current: the unobserved position's variance grows, and
