@@ -38,11 +38,13 @@
 //!    act on; of two causes whose gains are within `min_gain_nll` of each
 //!    other, the one with fewer parameters, and of two with as many, the
 //!    one that does not say a sensor is wrong. A scalar cause about to be
-//!    accepted must sit at a minimum of its training likelihood: the slope
-//!    read over a thousandth of its standard deviation must put the minimum
-//!    within three of them (a likelihood that jumps, as after a standstill
-//!    without a heading sensor, gives fits and standard deviations that say
-//!    nothing of the data). Then the others are tried again
+//!    accepted must sit at a minimum of its training likelihood: where the
+//!    slope read over a thousandth of its standard deviation puts the
+//!    minimum more than three of them away, Newton steps move it there and
+//!    it is judged again, and where they find none it is not named (a
+//!    likelihood that jumps, as after a standstill without a heading
+//!    sensor, gives fits and standard deviations that say nothing of the
+//!    data). Then the others are tried again
 //!    on top of it, until none clears the bars: combined effects are found
 //!    one after the other. Then each finding is judged again against the
 //!    model with all the others, and one that no longer gains
