@@ -964,8 +964,7 @@ struct Ridge<'c, 'a> {
 impl Ridge<'_, '_> {
     /// The training pass with the companion at `v`.
     fn at(&self, v: f64) -> Option<(Hypothesis, PassOut)> {
-        let mut h = self.train;
-        (self.scalar.set)(&mut h, v);
+        let h = with_scalar(self.train, self.scalar, v);
         let out = self.ctx.pass(&h, true);
         (!out.failed).then_some((h, out))
     }
@@ -1959,11 +1958,7 @@ fn refine_sizes_under_fitted_noise(
         let at_levels = noise_level::with_velocity_noise_levels(ctx.config, ctx.base, levels);
         let mut moved: f64 = 0.0;
         for r in &mut refitted {
-            let nll = |v: f64| {
-                let mut h = hyp;
-                (r.search.set)(&mut h, v);
-                training_nll(&at_levels, &h)
-            };
+            let nll = |v: f64| training_nll(&at_levels, &with_scalar(hyp, r.search, v));
             let (lo, hi) = r.search.bounds;
             let (size, sd) = minimise_1d(
                 &nll,
