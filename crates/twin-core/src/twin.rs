@@ -497,12 +497,9 @@ struct KineticEstimator {
     /// Exponentially weighted mean of the unit heading vector over the
     /// filter's memory (see [`KineticConfig::min_heading_spread`]).
     heading_mean: [f64; 2],
-    /// Exponentially weighted sums of the yaw rate, of its square and of
-    /// the weights over the filter's memory since the estimate started
-    /// (see [`KineticConfig::min_yaw_rate_spread`]): the means are the sums
-    /// over the weights, so the start's guess counts as one sample, not as
-    /// a memory's worth.
-    yaw_rate_moments: [f64; 3],
+    /// The yaw rates over the filter's memory
+    /// ([`KineticConfig::min_yaw_rate_spread`]).
+    yaw_rate_moments: YawRateMoments,
     /// Exponentially weighted means over the filter's memory of the NIS and
     /// of its degrees of freedom (see
     /// [`KineticConfig::max_explained_nis_per_dof`]).
@@ -568,15 +565,9 @@ impl KineticEstimator {
         let m = &mut self.heading_mean;
         m[0] += w * (cos_h - m[0]);
         m[1] += w * (sin_h - m[1]);
-        let r = state.x[idx::R];
-        let y = &mut self.yaw_rate_moments;
         match dt_s {
-            Some(_) => {
-                for (sum, sample) in y.iter_mut().zip([r, r * r, 1.0]) {
-                    *sum += w * (sample - *sum);
-                }
-            }
-            None => *y = [0.0; 3],
+            Some(_) => self.yaw_rate_moments.add(state.x[idx::R], w),
+            None => self.yaw_rate_moments = YawRateMoments::default(),
         }
         match (dt_s, &self.last_report) {
             (Some(_), Some(report)) if report.nis.is_finite() => {
@@ -593,17 +584,10 @@ impl KineticEstimator {
     }
 
     /// Whether the yaw rates over the filter's memory separate a difference
-    /// of the losses from a yaw damping error: near zero, or spread
+    /// of the losses from a yaw damping error
     /// ([`KineticConfig::min_yaw_rate_spread`]).
     fn yaw_balance_told(&self, config: &KineticConfig) -> bool {
-        let [sum, sum_square, weight] = self.yaw_rate_moments;
-        if weight <= 0.0 {
-            return false;
-        }
-        let (mean, mean_square) = (sum / weight, sum_square / weight);
-        let rms = mean_square.max(0.0).sqrt();
-        let std = (mean_square - mean * mean).max(0.0).sqrt();
-        rms <= config.straight_yaw_rate_radps || std >= config.min_yaw_rate_spread * rms
+        self.yaw_rate_moments.tell_yaw_balance(config)
     }
 
     /// How much the heading has varied over the filter's memory:
@@ -611,6 +595,68 @@ impl KineticEstimator {
     /// a half circle).
     fn heading_spread(&self) -> f64 {
         1.0 - self.heading_mean[0].hypot(self.heading_mean[1])
+    }
+}
+
+/// Exponentially weighted sums over the filter's memory of the yaw rate,
+/// of its square, of its square where it turns to starboard and to port,
+/// and of the weights, since the estimate started
+/// ([`KineticConfig::min_yaw_rate_spread`]). The means are the sums over
+/// the weights, so the start's guess counts as one sample, not as a
+/// memory's worth; the weight itself is how much of a memory the data
+/// fill (`1 - e^(-t / T)` after `t` of a memory `T`).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct YawRateMoments {
+    sum: f64,
+    sum_square: f64,
+    sum_square_starboard: f64,
+    sum_square_port: f64,
+    weight: f64,
+}
+
+impl YawRateMoments {
+    /// Moves the sums towards the yaw rate `r_radps` with weight `w`
+    /// (`1 - lambda` of the step).
+    fn add(&mut self, r_radps: f64, w: f64) {
+        let square = r_radps * r_radps;
+        let (starboard, port) = if r_radps > 0.0 {
+            (square, 0.0)
+        } else {
+            (0.0, square)
+        };
+        for (sum, sample) in [
+            (&mut self.sum, r_radps),
+            (&mut self.sum_square, square),
+            (&mut self.sum_square_starboard, starboard),
+            (&mut self.sum_square_port, port),
+            (&mut self.weight, 1.0),
+        ] {
+            *sum += w * (sample - *sum);
+        }
+    }
+
+    /// Whether these yaw rates separate a difference of the losses from a
+    /// yaw damping error: a straight run that fills
+    /// [`KineticConfig::straight_run_min_fill`] of the memory, or rates
+    /// spread ([`KineticConfig::min_yaw_rate_spread`]) with each way of
+    /// turning holding [`KineticConfig::min_turn_share`] of their mean
+    /// square.
+    fn tell_yaw_balance(&self, config: &KineticConfig) -> bool {
+        if self.weight <= 0.0 {
+            return false;
+        }
+        let mean = self.sum / self.weight;
+        let mean_square = (self.sum_square / self.weight).max(0.0);
+        let rms = mean_square.sqrt();
+        if rms <= config.straight_yaw_rate_radps {
+            // A straight run: the heading's small corrections are no turns
+            // either way.
+            return self.weight >= config.straight_run_min_fill;
+        }
+        let std = (mean_square - mean * mean).max(0.0).sqrt();
+        let each_way = self.sum_square_starboard.min(self.sum_square_port)
+            >= config.min_turn_share * self.sum_square;
+        std >= config.min_yaw_rate_spread * rms && each_way
     }
 }
 
@@ -708,7 +754,7 @@ impl VesselTwin {
                 last_report: None,
                 last_available: [false; MEASUREMENTS],
                 heading_mean: [0.0; 2],
-                yaw_rate_moments: [0.0; 3],
+                yaw_rate_moments: YawRateMoments::default(),
                 nis_moments: [0.0; 2],
                 comparison_told: false,
                 last_input: None,
@@ -1506,6 +1552,72 @@ impl VesselTwin {
 mod tests {
     use super::*;
     use crate::geodesy::LatLon;
+
+    /// The yaw-rate moments after `legs` of `(seconds, yaw rate rad/s)` at
+    /// 5 Hz with the default memory; a straight leg's rate alternates by
+    /// `+-0.01` rad/s, the heading's small corrections.
+    fn moments_after(legs: &[(f64, f64)]) -> YawRateMoments {
+        let dt_s: f64 = 0.2;
+        let memory_s: f64 = KineticConfig::otter().filter.forgetting_time_constant_s;
+        let w = 1.0 - (-dt_s / memory_s).exp();
+        let mut m = YawRateMoments::default();
+        let mut k = 0usize;
+        for &(seconds, rate) in legs {
+            for _ in 0..(seconds / dt_s).round() as usize {
+                let wobble = if k.is_multiple_of(2) { 0.01 } else { -0.01 };
+                m.add(if rate == 0.0 { wobble } else { rate }, w);
+                k += 1;
+            }
+        }
+        m
+    }
+
+    /// Whether `legs` tell the yaw balance.
+    fn told_after(legs: &[(f64, f64)]) -> bool {
+        moments_after(legs).tell_yaw_balance(&KineticConfig::otter())
+    }
+
+    /// `std(r) / rms(r)` of the moments: what the spread alone asks.
+    fn spread(m: &YawRateMoments) -> f64 {
+        let mean = m.sum / m.weight;
+        let mean_square = m.sum_square / m.weight;
+        (mean_square - mean * mean).sqrt() / mean_square.sqrt()
+    }
+
+    #[test]
+    fn a_straight_leg_and_the_start_of_one_turn_do_not_tell_the_yaw_balance() {
+        let config = KineticConfig::otter();
+        // The lawn-mower's first leg (27 s at 1.5 m/s) and 8 s into its
+        // first turn (a 12 m radius, 0.125 rad/s): spread enough by
+        // `std >= 0.8 rms`, but the vessel has turned one way only.
+        let m = moments_after(&[(27.0, 0.0), (8.0, 0.125)]);
+        assert!(spread(&m) >= config.min_yaw_rate_spread, "{}", spread(&m));
+        assert!(!told_after(&[(27.0, 0.0), (8.0, 0.125)]));
+        // The rest of the turn, the second leg, and the first seconds of a
+        // turn the other way: told.
+        assert!(!told_after(&[
+            (27.0, 0.0),
+            (25.0, 0.125),
+            (27.0, 0.0),
+            (2.0, -0.125)
+        ]));
+        assert!(told_after(&[
+            (27.0, 0.0),
+            (25.0, 0.125),
+            (27.0, 0.0),
+            (10.0, -0.125)
+        ]));
+        // A steady turn never.
+        assert!(!told_after(&[(20.0, 0.0), (300.0, 0.075)]));
+    }
+
+    #[test]
+    fn a_straight_run_tells_the_yaw_balance_once_it_fills_a_memory() {
+        let memory_s: f64 = KineticConfig::otter().filter.forgetting_time_constant_s;
+        // The heading's small corrections either way are no turns.
+        assert!(!told_after(&[(0.9 * memory_s, 0.0)]));
+        assert!(told_after(&[(1.1 * memory_s, 0.0)]));
+    }
 
     fn fix(time_s: f64, north_m: f64) -> GnssFix {
         let frame = LocalFrame::new(LatLon {

@@ -95,18 +95,37 @@ pub struct KineticConfig {
     /// dynamics, drives the yaw damping error away with a one-sided loss to
     /// balance it. The comparison of the propellers counts as excited only
     /// while the yaw rate over the filter's memory is either near zero (a
-    /// straight run: `rms(r) <= straight_yaw_rate_radps`, where the yaw
-    /// damping moment vanishes) or spread: `std(r) >= min_yaw_rate_spread
-    /// rms(r)`, the yaw balance seen at rates unlike each other. At 0.8
-    /// (`|mean(r)| <= 0.6 rms(r)`) a straight leg and one turn are not
-    /// enough: the damping moment is odd in `r` and a loss's is not, so
-    /// what separates them robustly, on a vessel whose unmodelled sway
-    /// damping, cross-flow drag and added mass also load the yaw balance,
-    /// is turning both ways (docs/model.md section 10).
+    /// straight run: `rms(r) <= straight_yaw_rate_radps` over at least
+    /// [`Self::straight_run_min_fill`] of a memory, where the yaw damping
+    /// moment vanishes) or spread: `std(r) >= min_yaw_rate_spread rms(r)`
+    /// (at 0.8, `|mean(r)| <= 0.6 rms(r)`), the yaw balance seen at rates
+    /// unlike each other, with each way of turning holding at least
+    /// [`Self::min_turn_share`] of the mean square. The damping moment is
+    /// odd in `r` and a loss's is not, so what separates them robustly, on
+    /// a vessel whose unmodelled sway damping, cross-flow drag and added
+    /// mass also load the yaw balance, is turning both ways (docs/model.md
+    /// section 10).
     pub min_yaw_rate_spread: f64,
+    /// The spread alone does not say that the vessel has turned both
+    /// ways: a straight leg and the first third of a turn one way spread
+    /// the rates too (a share `f` of the memory at one rate gives
+    /// `std / rms = sqrt(1 - f)`, 0.8 up to `f = 0.36`). Each way of
+    /// turning must therefore hold at least this share of the yaw rate's
+    /// mean square over the memory, `E[r^2; r > 0]` and `E[r^2; r < 0]`
+    /// each against `E[r^2]` (a lawn-mower's alternate turns give about
+    /// a half each; a turn one way after a straight leg, the heading's
+    /// small corrections only, a few hundredths).
+    pub min_turn_share: f64,
     /// The yaw rate below which a run counts as straight for
     /// [`Self::min_yaw_rate_spread`], rad/s.
     pub straight_yaw_rate_radps: f64,
+    /// A straight run tells the yaw balance only once its rates fill this
+    /// much of the filter's memory (their weights sum to `1 - e^(-t / T)`
+    /// after `t` of a memory `T`; `1 - 1/e` is one memory's worth): the
+    /// first 30-45 s of a trial's first leg hold a straight run's rates
+    /// alone, but too few of them to average out the yaw moments of the
+    /// water and of the hull's unmodelled sway.
+    pub straight_run_min_fill: f64,
     /// The comparison of the propellers is read off the yaw balance as the
     /// profile writes it (yaw inertia, yaw damping, the propellers'
     /// thrust). It counts as excited only while the filter's yaw damping,
@@ -245,7 +264,9 @@ impl KineticConfig {
             relative_release_sigma: 0.10,
             min_heading_spread: 0.05,
             min_yaw_rate_spread: 0.8,
+            min_turn_share: 0.2,
             straight_yaw_rate_radps: 0.02,
+            straight_run_min_fill: 1.0 - (-1.0f64).exp(),
             plausible_profile_sigmas: 2.5,
             max_explained_nis_per_dof: 2.0,
             propeller_mismatch_sigma: 0.03,
