@@ -267,8 +267,8 @@ fn a_straight_leg_and_one_turn_do_not_compare_a_vessel_unlike_its_profile() {
 /// and the losses' standard deviations covering the truth. The twin
 /// estimates the rate sensor's bias beside the heading sensor's offset
 /// (`twin_core::models::otter_twin::idx::YAW_RATE_BIAS`); held at zero
-/// instead, seeds 1-8 of the matrix declared 33 to 36 healthy propellers
-/// FAULT per seed (`trust_matrix -- --seeds 1-8 --gyro all
+/// instead, seeds 1-8 of the matrix declared 30 to 35 healthy propellers
+/// FAULT per seed (`trust_matrix -- --seeds 1-8 --gyro all --hold-gyro-bias
 /// --gyro-bias-deg-s 0.5`, docs/accuracy.md).
 #[test]
 fn a_biased_rate_gyro_faults_no_healthy_propeller() {
