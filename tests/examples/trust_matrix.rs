@@ -8,7 +8,8 @@
 //! ```
 //!
 //! `--trace I` prints what the twin published over draw `I`, every 10 s
-//! (every `S` s with `--every S`);
+//! (every `S` s with `--every S`), and beside it the filter's profile
+//! errors, water current and heading sensor offset;
 //! `--onsets` follows each loss of 15 % or more that starts mid-trial
 //! through the 30 s after its onset (of the seed, or of each seed with
 //! `--seeds`) and prints when it was declared and what stood in the way:
@@ -262,7 +263,8 @@ fn print_seeds(
     Ok(())
 }
 
-/// Prints what the twin published over `draw`, every 10 s.
+/// Prints what the twin published over `draw`, every `every_s`, with the
+/// filter's profile errors, water current and heading sensor offset.
 fn print_trace(draw: &Draw, config: TwinConfig, every_s: f64) -> Result<(), String> {
     println!("{}", draw.describe());
     let trial = twin_tests::trust::simulate(draw)?;
@@ -312,8 +314,17 @@ fn print_trace(draw: &Draw, config: TwinConfig, every_s: f64) -> Result<(), Stri
                 )
             })
             .unwrap_or_default();
+        let water = s
+            .current_and_heading_offset
+            .map(|([n, e], offset)| {
+                format!(
+                    " current n {n:+.2} e {e:+.2} m/s, heading offset {:+.1} deg",
+                    offset.to_degrees()
+                )
+            })
+            .unwrap_or_default();
         println!(
-            "{:6.1} s  port {}  stb {}  {damping}{mismatch}",
+            "{:6.1} s  port {}  stb {}  {damping}{water}{mismatch}",
             s.elapsed_s,
             side(0),
             side(1)

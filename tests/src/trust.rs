@@ -48,7 +48,7 @@ use rand::{Rng, SeedableRng};
 use twin_cli::simulate::write_jsonl;
 use twin_core::decision::{DecisionConfig, ThrusterStatus};
 use twin_core::geodesy::{LatLon, LocalFrame, NorthEast};
-use twin_core::models::otter_twin::ShaftSpeeds;
+use twin_core::models::otter_twin::{ShaftSpeeds, idx};
 use twin_core::sample::PropellerSpeeds;
 use twin_core::twin::{FaultReport, TwinConfig, VesselTwin};
 use twin_sim::{CurrentSpec, LeverArm, Scenario, VesselSpec, Waypoint};
@@ -750,6 +750,10 @@ pub struct Sample {
     pub elapsed_s: f64,
     /// What the twin published.
     pub report: FaultReport,
+    /// The extended twin's water current `[north, east]` (m/s) and heading
+    /// sensor offset (rad), where it runs: what a trace shows beside the
+    /// losses.
+    pub current_and_heading_offset: Option<([f64; 2], f64)>,
 }
 
 /// One forecast position against the truth.
@@ -804,9 +808,16 @@ pub fn run(trial: &Trial, config: TwinConfig) -> Record {
             Assembled::Fix(fix) => {
                 let Ok(out) = twin.on_gnss(fix) else { continue };
                 let elapsed_s = fix.time_s - trial.start_s;
+                let current_and_heading_offset = twin.kinetic_state().map(|k| {
+                    (
+                        [k.x[idx::CURRENT_NORTH], k.x[idx::CURRENT_EAST]],
+                        k.x[idx::HEADING_BIAS],
+                    )
+                });
                 samples.push(Sample {
                     elapsed_s,
                     report: out.faults,
+                    current_and_heading_offset,
                 });
                 if elapsed_s >= next_band_s && twin.kinetic_active() {
                     next_band_s += BAND_EVERY_S;
