@@ -599,8 +599,8 @@ impl KineticEstimator {
 }
 
 /// Exponentially weighted sums over the filter's memory of the yaw rate,
-/// of its square, of its square where it turns to starboard and to port,
-/// and of the weights, since the estimate started
+/// of its square where it turns to starboard and to port (their sum is
+/// the square's), and of the weights, since the estimate started
 /// ([`KineticConfig::min_yaw_rate_spread`]). The means are the sums over
 /// the weights, so the start's guess counts as one sample, not as a
 /// memory's worth; the weight itself is how much of a memory the data
@@ -608,7 +608,6 @@ impl KineticEstimator {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 struct YawRateMoments {
     sum: f64,
-    sum_square: f64,
     sum_square_starboard: f64,
     sum_square_port: f64,
     weight: f64,
@@ -626,7 +625,6 @@ impl YawRateMoments {
         };
         for (sum, sample) in [
             (&mut self.sum, r_radps),
-            (&mut self.sum_square, square),
             (&mut self.sum_square_starboard, starboard),
             (&mut self.sum_square_port, port),
             (&mut self.weight, 1.0),
@@ -642,21 +640,36 @@ impl YawRateMoments {
     /// turning holding [`KineticConfig::min_turn_share`] of their mean
     /// square.
     fn tell_yaw_balance(&self, config: &KineticConfig) -> bool {
-        if self.weight <= 0.0 {
+        let Some((rms, std)) = self.rms_and_std() else {
             return false;
-        }
-        let mean = self.sum / self.weight;
-        let mean_square = (self.sum_square / self.weight).max(0.0);
-        let rms = mean_square.sqrt();
+        };
         if rms <= config.straight_yaw_rate_radps {
             // A straight run: the heading's small corrections are no turns
             // either way.
             return self.weight >= config.straight_run_min_fill;
         }
-        let std = (mean_square - mean * mean).max(0.0).sqrt();
         let each_way = self.sum_square_starboard.min(self.sum_square_port)
-            >= config.min_turn_share * self.sum_square;
+            >= config.min_turn_share * self.sum_square();
         std >= config.min_yaw_rate_spread * rms && each_way
+    }
+
+    /// The weighted sum of the squares, both ways of turning.
+    fn sum_square(&self) -> f64 {
+        self.sum_square_starboard + self.sum_square_port
+    }
+
+    /// The yaw rate's root mean square and standard deviation, rad/s;
+    /// `None` before the first rate.
+    fn rms_and_std(&self) -> Option<(f64, f64)> {
+        if self.weight <= 0.0 {
+            return None;
+        }
+        let mean = self.sum / self.weight;
+        let mean_square = (self.sum_square() / self.weight).max(0.0);
+        Some((
+            mean_square.sqrt(),
+            (mean_square - mean * mean).max(0.0).sqrt(),
+        ))
     }
 }
 
@@ -1579,9 +1592,8 @@ mod tests {
 
     /// `std(r) / rms(r)` of the moments: what the spread alone asks.
     fn spread(m: &YawRateMoments) -> f64 {
-        let mean = m.sum / m.weight;
-        let mean_square = m.sum_square / m.weight;
-        (mean_square - mean * mean).sqrt() / mean_square.sqrt()
+        let (rms, std) = m.rms_and_std().expect("rates were added");
+        std / rms
     }
 
     #[test]
@@ -1592,7 +1604,7 @@ mod tests {
         // `std >= 0.8 rms`, but the vessel has turned one way only.
         let m = moments_after(&[(27.0, 0.0), (8.0, 0.125)]);
         assert!(spread(&m) >= config.min_yaw_rate_spread, "{}", spread(&m));
-        assert!(!told_after(&[(27.0, 0.0), (8.0, 0.125)]));
+        assert!(!m.tell_yaw_balance(&config));
         // The rest of the turn, the second leg, and the first seconds of a
         // turn the other way: told.
         assert!(!told_after(&[
