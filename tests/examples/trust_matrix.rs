@@ -4,7 +4,7 @@
 //! this command's).
 //!
 //! ```text
-//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I [--every S]] [--onsets] [--list] [--known-antenna] [--identified] [--diagnosed] [--gyro all|none] [--gyro-bias-deg-s B] [--hold-gyro-bias] [--calm]
+//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I [--every S]] [--onsets] [--list] [--known-antenna] [--identified] [--diagnosed] [--gyro all|none] [--gyro-bias-deg-s B] [--hold-gyro-bias] [--calm] [--sensor-noise-scale S]
 //! ```
 //!
 //! `--trace I` prints what the twin published over draw `I`, every 10 s
@@ -36,6 +36,11 @@
 //! random forces (on both simulators), the draws otherwise the same: what
 //! an estimate keeps there is the vessel's difference from its profile,
 //! and what it loses is the disturbance of the moment.
+//! `--sensor-noise-scale S` multiplies the project's simulator's sensor
+//! noise by S (the independent simulator keeps its own): with `--calm` on
+//! a draw of the Otter itself, what an estimate keeps at the sensors'
+//! noise and loses as it goes is the estimator's own bias. A trace prints
+//! the filter's own losses beside the published ones.
 
 use twin_core::decision::ThrusterStatus;
 use twin_core::twin::TwinConfig;
@@ -63,6 +68,8 @@ struct Told {
     hold_gyro_bias: bool,
     /// Every draw in water without random forces.
     calm_water: bool,
+    /// The project's simulator's sensor noise times this, in place of 1.
+    sensor_noise_scale: Option<f64>,
 }
 
 /// The matrix's draws of `seed`, with the gyro `told` sets.
@@ -77,6 +84,9 @@ fn draws(own: usize, other: usize, seed: u64, told: Told) -> Vec<Draw> {
         let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
         d.gyro_bias_deg_s = sign * told.gyro_bias_deg_s;
         d.calm_water = told.calm_water;
+        if let Some(scale) = told.sensor_noise_scale {
+            d.sensor_noise_scale = scale;
+        }
     }
     all
 }
@@ -137,6 +147,14 @@ fn main() -> Result<(), String> {
             "--diagnosed" => told.diagnosed = true,
             "--hold-gyro-bias" => told.hold_gyro_bias = true,
             "--calm" => told.calm_water = true,
+            "--sensor-noise-scale" => {
+                let scale = args
+                    .next()
+                    .and_then(|v| v.parse::<f64>().ok())
+                    .filter(|s| s.is_finite() && *s > 0.0)
+                    .ok_or("--sensor-noise-scale needs a number above 0")?;
+                told.sensor_noise_scale = Some(scale);
+            }
             "--gyro" => {
                 told.gyro = match args.next().as_deref() {
                     Some("all") => Some(true),
@@ -315,11 +333,13 @@ fn print_trace(draw: &Draw, config: TwinConfig, every_s: f64) -> Result<(), Stri
             })
             .unwrap_or_default();
         let water = s
-            .current_and_heading_offset
-            .map(|([n, e], offset)| {
+            .filter
+            .map(|f| {
+                let [n, e] = f.current_mps;
+                let [(lp, sp), (ls, ss)] = f.losses;
                 format!(
-                    " current n {n:+.2} e {e:+.2} m/s, heading offset {:+.1} deg",
-                    offset.to_degrees()
+                    " current n {n:+.2} e {e:+.2} m/s, heading offset {:+.1} deg, filter losses {lp:+.2}±{sp:.2} {ls:+.2}±{ss:.2}",
+                    f.heading_offset_rad.to_degrees()
                 )
             })
             .unwrap_or_default();
