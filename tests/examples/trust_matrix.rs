@@ -9,7 +9,8 @@
 //!
 //! `--trace I` prints what the twin published over draw `I`, every 10 s
 //! (every `S` s with `--every S`), and beside it the filter's profile
-//! errors, water current and heading sensor offset;
+//! errors, water current, heading sensor offset and its own losses (before
+//! the publication widens their common part);
 //! `--onsets` follows each loss of 15 % or more that starts mid-trial
 //! through the 30 s after its onset (of the seed, or of each seed with
 //! `--seeds`) and prints when it was declared and what stood in the way:
@@ -39,8 +40,7 @@
 //! `--sensor-noise-scale S` multiplies the project's simulator's sensor
 //! noise by S (the independent simulator keeps its own): with `--calm` on
 //! a draw of the Otter itself, what an estimate keeps at the sensors'
-//! noise and loses as it goes is the estimator's own bias. A trace prints
-//! the filter's own losses beside the published ones.
+//! noise and loses as it goes is the estimator's own bias.
 
 use twin_core::decision::ThrusterStatus;
 use twin_core::twin::TwinConfig;
@@ -282,7 +282,8 @@ fn print_seeds(
 }
 
 /// Prints what the twin published over `draw`, every `every_s`, with the
-/// filter's profile errors, water current and heading sensor offset.
+/// filter's profile errors, water current, heading sensor offset and own
+/// losses.
 fn print_trace(draw: &Draw, config: TwinConfig, every_s: f64) -> Result<(), String> {
     println!("{}", draw.describe());
     let trial = twin_tests::trust::simulate(draw)?;
@@ -332,7 +333,7 @@ fn print_trace(draw: &Draw, config: TwinConfig, every_s: f64) -> Result<(), Stri
                 )
             })
             .unwrap_or_default();
-        let water = s
+        let filter = s
             .filter
             .map(|f| {
                 let [n, e] = f.current_mps;
@@ -344,7 +345,7 @@ fn print_trace(draw: &Draw, config: TwinConfig, every_s: f64) -> Result<(), Stri
             })
             .unwrap_or_default();
         println!(
-            "{:6.1} s  port {}  stb {}  {damping}{water}{mismatch}",
+            "{:6.1} s  port {}  stb {}  {damping}{filter}{mismatch}",
             s.elapsed_s,
             side(0),
             side(1)
