@@ -4,7 +4,7 @@
 //! this command's).
 //!
 //! ```text
-//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I [--every S]] [--onsets] [--list] [--known-antenna] [--identified] [--diagnosed] [--gyro all|none] [--gyro-bias-deg-s B] [--hold-gyro-bias] [--calm] [--sensor-noise-scale S]
+//! cargo run --release -p twin-tests --example trust_matrix -- [--own N] [--other N] [--seed S] [--seeds A-B] [--threads T] [--failures] [--trace I [--every S]] [--onsets] [--list] [--known-antenna] [--identified] [--diagnosed] [--gyro all|none] [--gyro-bias-deg-s B] [--hold-gyro-bias] [--calm] [--sensor-noise-scale S] [--gain-sensitivity covariance|exact]
 //! ```
 //!
 //! `--trace I` prints what the twin published over draw `I`, every 10 s
@@ -41,7 +41,12 @@
 //! noise by S (the independent simulator keeps its own): with `--calm` on
 //! a draw of the Otter itself, what an estimate keeps at the sensors'
 //! noise and loses as it goes is the estimator's own bias.
+//! `--gain-sensitivity covariance` runs the extended twin's filter with
+//! the Kalman gain's part in the faults' sensitivity through the
+//! propagated covariance, `--gain-sensitivity exact` with all of it
+//! (`twin_core::aekf::GainSensitivity`).
 
+use twin_core::aekf::GainSensitivity;
 use twin_core::decision::ThrusterStatus;
 use twin_core::twin::TwinConfig;
 use twin_tests::trust::{
@@ -70,6 +75,8 @@ struct Told {
     calm_water: bool,
     /// The project's simulator's sensor noise times this, in place of 1.
     sensor_noise_scale: Option<f64>,
+    /// The gain's part in the extended twin's filter's faults' sensitivity.
+    gain_sensitivity: GainSensitivity,
 }
 
 /// The matrix's draws of `seed`, with the gyro `told` sets.
@@ -112,7 +119,55 @@ fn config_of(draw: &Draw, told: Told, say: bool) -> Result<TwinConfig, String> {
     if told.identified {
         config = with_identified_profile(config, draw)?;
     }
+    config.kinetic.filter.gain_sensitivity = told.gain_sensitivity;
     Ok(config)
+}
+
+/// Reads the option `a` (and its value from `args`) into `told` if it is
+/// one of what the twin is told: whether it was.
+fn told_option(
+    a: &str,
+    args: &mut impl Iterator<Item = String>,
+    told: &mut Told,
+) -> Result<bool, String> {
+    match a {
+        "--known-antenna" => told.antenna = true,
+        "--identified" => told.identified = true,
+        "--diagnosed" => told.diagnosed = true,
+        "--hold-gyro-bias" => told.hold_gyro_bias = true,
+        "--gain-sensitivity" => {
+            told.gain_sensitivity = match args.next().as_deref() {
+                Some("covariance") => GainSensitivity::ThroughCovariance,
+                Some("exact") => GainSensitivity::Exact,
+                _ => return Err("--gain-sensitivity needs covariance or exact".into()),
+            }
+        }
+        "--calm" => told.calm_water = true,
+        "--sensor-noise-scale" => {
+            let scale = args
+                .next()
+                .and_then(|v| v.parse::<f64>().ok())
+                .filter(|s| s.is_finite() && *s > 0.0)
+                .ok_or("--sensor-noise-scale needs a number above 0")?;
+            told.sensor_noise_scale = Some(scale);
+        }
+        "--gyro" => {
+            told.gyro = match args.next().as_deref() {
+                Some("all") => Some(true),
+                Some("none") => Some(false),
+                other => return Err(format!("--gyro needs all or none, got {other:?}")),
+            }
+        }
+        "--gyro-bias-deg-s" => {
+            told.gyro_bias_deg_s = args
+                .next()
+                .and_then(|v| v.parse::<f64>().ok())
+                .filter(|b| b.is_finite())
+                .ok_or("--gyro-bias-deg-s needs a number")?;
+        }
+        _ => return Ok(false),
+    }
+    Ok(true)
 }
 
 fn main() -> Result<(), String> {
@@ -129,6 +184,9 @@ fn main() -> Result<(), String> {
     let mut seeds: Option<(u64, u64)> = None;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
+        if told_option(&a, &mut args, &mut told)? {
+            continue;
+        }
         let mut value = |name: &str| {
             args.next()
                 .and_then(|v| v.parse::<u64>().ok())
@@ -142,33 +200,6 @@ fn main() -> Result<(), String> {
             "--failures" => failures = true,
             "--list" => list = true,
             "--onsets" => onsets = true,
-            "--known-antenna" => told.antenna = true,
-            "--identified" => told.identified = true,
-            "--diagnosed" => told.diagnosed = true,
-            "--hold-gyro-bias" => told.hold_gyro_bias = true,
-            "--calm" => told.calm_water = true,
-            "--sensor-noise-scale" => {
-                let scale = args
-                    .next()
-                    .and_then(|v| v.parse::<f64>().ok())
-                    .filter(|s| s.is_finite() && *s > 0.0)
-                    .ok_or("--sensor-noise-scale needs a number above 0")?;
-                told.sensor_noise_scale = Some(scale);
-            }
-            "--gyro" => {
-                told.gyro = match args.next().as_deref() {
-                    Some("all") => Some(true),
-                    Some("none") => Some(false),
-                    other => return Err(format!("--gyro needs all or none, got {other:?}")),
-                }
-            }
-            "--gyro-bias-deg-s" => {
-                told.gyro_bias_deg_s = args
-                    .next()
-                    .and_then(|v| v.parse::<f64>().ok())
-                    .filter(|b| b.is_finite())
-                    .ok_or("--gyro-bias-deg-s needs a number")?;
-            }
             "--trace" => trace = Some(value("--trace")? as usize),
             "--every" => every_s = value("--every")? as f64,
             "--seeds" => {

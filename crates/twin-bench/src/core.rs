@@ -14,6 +14,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
+use twin_core::aekf::GainSensitivity;
 use twin_core::twin::TwinConfig;
 
 use crate::estimator::{self, NumpyOptions};
@@ -313,6 +314,20 @@ impl Measurements<'_> {
             t.ns_per_step_median < TARGET_EXTENDED_STEP_NS,
         ));
         push_copies_row(rows, "extended", &kinetic.time_both_copies(reps(101)));
+        // What the Kalman gain's part in the faults' sensitivity costs
+        // (`AekfConfig::gain_sensitivity`, not the twin's default).
+        for (form, what) in [
+            (GainSensitivity::ThroughCovariance, "through the covariance"),
+            (GainSensitivity::Exact, "exact"),
+        ] {
+            let mut with_gain = config;
+            with_gain.kinetic.filter.gain_sensitivity = form;
+            let t = workloads::kinetic_steps(demo_inputs, with_gain)?.time(reps(31));
+            rows.push(Row::plain(
+                format!("AEKF step, extended model, the gain's part in Upsilon {what}"),
+                duration_text(t.ns_per_step_median),
+            ));
+        }
         let fixes = workloads::fix_count(demo_inputs);
         let shafts = demo_inputs.len() - fixes;
         let t = workloads::per_item(fixes, reps(31), || {

@@ -17,7 +17,7 @@ use std::time::Instant;
 use nalgebra::{SMatrix, SVector, Vector2, Vector4};
 use serde::{Deserialize, Serialize};
 use twin_core::aekf::{
-    Aekf, AekfConfig, AekfError, AekfState, MeasurementNoiseForm, NoiseAdaptation,
+    Aekf, AekfConfig, AekfError, AekfState, GainSensitivity, MeasurementNoiseForm, NoiseAdaptation,
 };
 use twin_core::geodesy::wrap_pi;
 use twin_core::model::Measurement;
@@ -383,6 +383,7 @@ impl TrialFile {
             anti_windup_ratio: c.anti_windup_ratio,
             excitation_sigma: c.excitation_sigma,
             noise_adaptation,
+            gain_sensitivity: GainSensitivity::Omitted,
         };
         let filter = Aekf::new(KinematicModel, config)?;
         let start = AekfState::new(

@@ -6,7 +6,7 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::{SMatrix, SVector, Vector2, Vector4};
 use std::hint::black_box;
-use twin_core::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
+use twin_core::aekf::{Aekf, AekfConfig, AekfError, AekfState, GainSensitivity, StepReport};
 use twin_core::model::Measurement;
 use twin_core::models::kinematic::{KinematicInput, KinematicModel};
 
@@ -20,6 +20,7 @@ fn seed_config() -> AekfConfig<4, 4, 2> {
         anti_windup_ratio: 0.1,
         excitation_sigma: 0.02,
         noise_adaptation: None,
+        gain_sensitivity: GainSensitivity::Omitted,
     }
 }
 

@@ -22,7 +22,14 @@
 //! - measurement components may be missing (masked), exactly: a masked
 //!   component has a zero row in `H` and a zero innovation;
 //! - the measurement model may be nonlinear (`H` is its Jacobian at the
-//!   predicted state), and angle innovations are wrapped.
+//!   predicted state), and angle innovations are wrapped;
+//! - optionally ([`AekfConfig::gain_sensitivity`]), step 7 adds the Kalman
+//!   gain's own dependence on the faults, `(dK/dtheta) ytilde`, carrying
+//!   the state covariance's derivative `dP/dtheta` from step to step
+//!   (Ljung 1979's modification of the extended Kalman filter as a
+//!   parameter estimator): with [`GainSensitivity::Exact`] `Upsilon` is
+//!   then the derivative of the state estimate with respect to the
+//!   faults, where step 7 alone leaves the gain out of it.
 //!
 //! Computed, not changed: `Sigma` is factorised once per step as `L D L^T`
 //! (no square roots) and every solve with it reuses the factor; steps 8-10
@@ -101,6 +108,29 @@ pub struct AekfConfig<const N: usize, const M: usize, const P: usize> {
     pub excitation_sigma: f64,
     /// Optional Q/R adaptation.
     pub noise_adaptation: Option<NoiseAdaptation>,
+    /// How much of the Kalman gain's dependence on the faults their
+    /// sensitivity `Upsilon` carries (the module's docs;
+    /// [`GainSensitivity::Omitted`] is the seed's recursion).
+    pub gain_sensitivity: GainSensitivity,
+}
+
+/// The Kalman gain's part in the faults' sensitivity `Upsilon` (step 7).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum GainSensitivity {
+    /// Step 7 as published: `Upsilon = (I - K H)(F Upsilon + Psi)`, the
+    /// gain read as if it did not depend on the faults.
+    #[default]
+    Omitted,
+    /// The gain's dependence through the propagated covariance
+    /// (`dP-/dtheta` from the transition Jacobian's change along the
+    /// faults), not through the point where the measurement model is
+    /// linearised: exact where `H` does not depend on the state. One
+    /// transition per fault per step, besides the products.
+    ThroughCovariance,
+    /// Both: `Upsilon` is the derivative of the state estimate with
+    /// respect to the faults. A transition and a measurement model per
+    /// fault per step, besides the products.
+    Exact,
 }
 
 /// The estimate the filter carries from step to step. Plain data: clone it to
@@ -130,6 +160,9 @@ pub struct AekfState<const N: usize, const M: usize, const P: usize> {
     pub recent_information: SMatrix<f64, P, P>,
     /// Steps taken.
     pub steps: u64,
+    /// The derivative of `p` with respect to each fault, `dP/dtheta_i`,
+    /// where [`AekfConfig::gain_sensitivity`] carries it; zeros otherwise.
+    pub covariance_sensitivity: [SMatrix<f64, N, N>; P],
 }
 
 impl<const N: usize, const M: usize, const P: usize> AekfState<N, M, P> {
@@ -152,6 +185,7 @@ impl<const N: usize, const M: usize, const P: usize> AekfState<N, M, P> {
             held_information: SVector::zeros(),
             recent_information: SMatrix::zeros(),
             steps: 0,
+            covariance_sensitivity: [SMatrix::zeros(); P],
         }
     }
 
@@ -201,6 +235,7 @@ impl<const N: usize, const M: usize, const P: usize> AekfState<N, M, P> {
             + poison(&self.recent_information)
             + poison(&self.process_noise_density)
             + poison(&self.measurement_noise)
+            + self.covariance_sensitivity.iter().map(poison).sum::<f64>()
             == 0.0;
         let mut diagonals_ok = true;
         for i in 0..N {
@@ -294,6 +329,33 @@ struct Prediction<const N: usize, const P: usize> {
     q_step: SMatrix<f64, N, N>,
     /// The predicted covariance `P-`.
     p_prior: SMatrix<f64, N, N>,
+    /// `dP-/dtheta_i`, where [`AekfConfig::gain_sensitivity`] asks for it.
+    p_prior_sensitivity: Option<[SMatrix<f64, N, N>; P]>,
+}
+
+/// The step of the finite differences along each fault in
+/// [`AekfConfig::gain_sensitivity`]'s terms: the fault moved by it, the
+/// state by its sensitivity times it.
+const SENSITIVITY_STEP: f64 = 1e-6;
+
+/// What the gain's part of step 7 reads from the update.
+struct GainTerms<'a, const N: usize, const M: usize, const P: usize> {
+    /// The predicted state `x-`.
+    x_bar: &'a SVector<f64, N>,
+    /// `H` at the predicted state, as the model gives it.
+    observed_jacobian: &'a SMatrix<f64, M, N>,
+    /// `H` with the missing components' rows zero.
+    h: &'a SMatrix<f64, M, N>,
+    /// The Kalman gain.
+    k: &'a SMatrix<f64, N, M>,
+    /// `P-`.
+    p_prior: &'a SMatrix<f64, N, N>,
+    /// `F Upsilon + Psi`: the predicted state's sensitivity to the faults.
+    f_ups_psi: &'a SMatrix<f64, N, P>,
+    /// The innovation.
+    innovation: &'a SVector<f64, M>,
+    /// Which measurement components are available.
+    available: &'a [bool; M],
 }
 
 /// The filter: a model and its tuning. Stateless; see [`AekfState`].
@@ -461,6 +523,8 @@ where
         // the update runs in a copy of its code with that pattern folded in,
         // so that its products by `H` skip those zeros too.
         let obs = self.model.observe(&x_bar);
+        let p_prior_sensitivity = (self.config.gain_sensitivity != GainSensitivity::Omitted)
+            .then(|| self.prior_covariance_sensitivity(state, input, &f, dt_s));
         let prediction = Prediction {
             lambda,
             f,
@@ -468,6 +532,7 @@ where
             x_bar,
             q_step,
             p_prior,
+            p_prior_sensitivity,
         };
         if self.model.observation_in_sparser_pattern() {
             self.update(
@@ -481,6 +546,76 @@ where
         } else {
             self.update(state, y, dt_s, &prediction, &obs, &Mdl::OBSERVATION_PATTERN)
         }
+    }
+
+    /// `dP-/dtheta_i = dF P F^T + F P dF^T + F (dP/dtheta_i) F^T` for each
+    /// fault, with `dF` the change of the transition Jacobian along the
+    /// fault and the state estimate's sensitivity to it (`x + e Upsilon_i`,
+    /// `theta + e e_i`), by a finite difference of the model.
+    fn prior_covariance_sensitivity(
+        &self,
+        state: &AekfState<N, M, P>,
+        input: &Mdl::Input,
+        f: &SMatrix<f64, N, N>,
+        dt_s: f64,
+    ) -> [SMatrix<f64, N, N>; P] {
+        let p_ft = state.p * f.transpose();
+        std::array::from_fn(|i| {
+            let mut theta = state.theta;
+            theta[i] += SENSITIVITY_STEP;
+            let x = state.x + state.upsilon.column(i) * SENSITIVITY_STEP;
+            let moved = self.model.transition(&x, input, &theta, dt_s).jacobian;
+            let df = (moved - f) / SENSITIVITY_STEP;
+            let spread = df * p_ft;
+            let dp =
+                spread + spread.transpose() + f * state.covariance_sensitivity[i] * f.transpose();
+            (dp + dp.transpose()) * 0.5
+        })
+    }
+
+    /// The gain's part of step 7 (Ljung 1979), for each fault: with
+    /// `dH` the measurement Jacobian's change along the predicted state's
+    /// sensitivity `F Upsilon + Psi` (a finite difference of the model, the
+    /// missing components' rows zero; zero for
+    /// [`GainSensitivity::ThroughCovariance`]),
+    /// `dK = [(I - K H) dP- H^T + (I - K H) P- dH^T - K dH P- H^T] Sigma^-1`
+    /// is added to `Upsilon` times the innovation, and
+    /// `dP = dP- - dK H P- - K dH P- - K H dP-` is returned for the next
+    /// step.
+    fn gain_sensitivity_step(
+        &self,
+        gain: &GainTerms<'_, N, M, P>,
+        sigma_chol: &crate::linalg::Ldl<M>,
+        dp_prior: &[SMatrix<f64, N, N>; P],
+        upsilon: &mut SMatrix<f64, N, P>,
+    ) -> [SMatrix<f64, N, N>; P] {
+        let i_kh = SMatrix::<f64, N, N>::identity() - gain.k * gain.h;
+        let i_kh_p = i_kh * gain.p_prior;
+        let exact = self.config.gain_sensitivity == GainSensitivity::Exact;
+        std::array::from_fn(|i| {
+            let mut dh = SMatrix::<f64, M, N>::zeros();
+            if exact {
+                let moved = gain.x_bar + gain.f_ups_psi.column(i) * SENSITIVITY_STEP;
+                dh = (self.model.observe(&moved).jacobian - gain.observed_jacobian)
+                    / SENSITIVITY_STEP;
+                for (m, available) in gain.available.iter().enumerate() {
+                    if !available {
+                        dh.set_row(m, &SMatrix::<f64, 1, N>::zeros());
+                    }
+                }
+            }
+            let dh_p = dh * gain.p_prior;
+            let before_sigma = i_kh * dp_prior[i] * gain.h.transpose() + i_kh_p * dh.transpose()
+                - gain.k * dh_p * gain.h.transpose();
+            // dK = before_sigma Sigma^-1, Sigma symmetric: (Sigma^-1 before_sigma^T)^T.
+            let dk = sigma_chol.solve(&before_sigma.transpose()).transpose();
+            upsilon.set_column(i, &(upsilon.column(i) + dk * gain.innovation));
+            let dp = dp_prior[i]
+                - dk * gain.h * gain.p_prior
+                - gain.k * dh_p
+                - gain.k * gain.h * dp_prior[i];
+            (dp + dp.transpose()) * 0.5
+        })
     }
 
     /// Steps 3-13 of [`Self::step_baseline`], from its prediction and the
@@ -505,6 +640,7 @@ where
             x_bar,
             q_step,
             p_prior,
+            ref p_prior_sensitivity,
         } = *prediction;
         let f_pattern = &Mdl::TRANSITION_PATTERN;
         // The measurement model at the predicted state, with missing
@@ -561,7 +697,22 @@ where
         // that minus K Omega.
         let f_ups_psi = mul_sparse_left(f, f_pattern, &state.upsilon) + psi;
         let omega = mul_sparse_left(&h, h_pattern, &f_ups_psi);
-        let upsilon = f_ups_psi - mul(&k, &omega);
+        let mut upsilon = f_ups_psi - mul(&k, &omega);
+        // Where the gain's part is off, the (zero) derivatives are neither
+        // copied nor checked nor written back.
+        let covariance_sensitivity = p_prior_sensitivity.as_ref().map(|dp_prior| {
+            let gain = GainTerms {
+                x_bar: &x_bar,
+                observed_jacobian: &obs.jacobian,
+                h: &h,
+                k: &k,
+                p_prior: &p_prior,
+                f_ups_psi: &f_ups_psi,
+                innovation: &innovation,
+                available: &y.available,
+            };
+            self.gain_sensitivity_step(&gain, &sigma_chol, dp_prior, &mut upsilon)
+        });
 
         // Forgetting, per fault component (anti-windup), then steps 8-10 in the
         // equivalent form with the forgotten S_f = D^-1/2 S D^-1/2.
@@ -690,6 +841,9 @@ where
             + poison(&s_post)
             + poison(&theta)
             + poison(&upsilon)
+            + covariance_sensitivity
+                .as_ref()
+                .map_or(0.0, |d| d.iter().map(poison).sum::<f64>())
             + poison(&held_information)
             + poison(&recent_information)
             + q_density.as_ref().map_or(0.0, poison)
@@ -703,6 +857,9 @@ where
         state.x = x_post;
         state.p = p_post;
         state.upsilon = upsilon;
+        if let Some(d) = covariance_sensitivity {
+            state.covariance_sensitivity = d;
+        }
         state.s = s_post;
         state.theta = theta;
         if let Some(q) = q_density {

@@ -9,7 +9,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 use twin_core::aekf::{
-    Aekf, AekfConfig, AekfError, AekfState, MeasurementNoiseForm, NoiseAdaptation,
+    Aekf, AekfConfig, AekfError, AekfState, GainSensitivity, MeasurementNoiseForm, NoiseAdaptation,
 };
 use twin_core::geodesy::wrap_pi;
 use twin_core::model::Measurement;
@@ -25,6 +25,7 @@ fn config(q_density: Vector4<f64>, r_sigma: Vector4<f64>, tau_s: f64) -> AekfCon
         anti_windup_ratio: 0.1,
         excitation_sigma: 0.02,
         noise_adaptation: None,
+        gain_sensitivity: GainSensitivity::Omitted,
     }
 }
 

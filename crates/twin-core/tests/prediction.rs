@@ -5,7 +5,7 @@ use nalgebra::{SMatrix, SVector, Vector2, Vector4};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand_distr::{Distribution, Normal};
-use twin_core::aekf::{Aekf, AekfConfig, AekfState};
+use twin_core::aekf::{Aekf, AekfConfig, AekfState, GainSensitivity};
 use twin_core::geodesy::wrap_pi;
 use twin_core::model::Measurement;
 use twin_core::model::Model;
@@ -47,6 +47,7 @@ fn forecast_coverage(propagation: Propagation, calibration_steps: usize) -> (f64
         anti_windup_ratio: 0.1,
         excitation_sigma: 0.02,
         noise_adaptation: None,
+        gain_sensitivity: GainSensitivity::Omitted,
     };
     let filter = Aekf::new(KinematicModel, config).unwrap();
     let (mut within1, mut within2, mut total) = (0usize, 0usize, 0usize);
@@ -178,6 +179,7 @@ fn fault_uncertainty_propagates_exactly() {
         held_information: Vector2::zeros(),
         recent_information: SMatrix::zeros(),
         steps: 0,
+        covariance_sensitivity: [SMatrix::zeros(); 2],
     };
     state.x[3] = 0.1;
     let u = KinematicInput {

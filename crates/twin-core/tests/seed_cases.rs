@@ -10,7 +10,9 @@ use nalgebra::{SMatrix, SVector, Vector2, Vector4};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand_distr::{Distribution, Normal};
-use twin_core::aekf::{Aekf, AekfConfig, AekfState, MeasurementNoiseForm, NoiseAdaptation};
+use twin_core::aekf::{
+    Aekf, AekfConfig, AekfState, GainSensitivity, MeasurementNoiseForm, NoiseAdaptation,
+};
 use twin_core::geodesy::wrap_pi;
 use twin_core::model::Measurement;
 use twin_core::models::kinematic::{KinematicInput, KinematicModel};
@@ -27,6 +29,7 @@ fn seed_config(dt_s: f64) -> AekfConfig<4, 4, 2> {
         anti_windup_ratio: 0.1,
         excitation_sigma: 0.02,
         noise_adaptation: None,
+        gain_sensitivity: GainSensitivity::Omitted,
     }
 }
 

@@ -12,7 +12,7 @@
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 use super::{CourseGate, Learnt, LocalFix, Surroundings};
-use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
+use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, GainSensitivity, StepReport};
 use crate::model::Measurement;
 use crate::models::effects::SensorEffects;
 use crate::models::otter_twin::{
@@ -249,6 +249,7 @@ impl KineticConfig {
                 anti_windup_ratio: 0.1,
                 excitation_sigma: 0.03,
                 noise_adaptation: None,
+                gain_sensitivity: GainSensitivity::Omitted,
             },
             initial_current_sigma_mps: 0.5,
             estimate_current: true,

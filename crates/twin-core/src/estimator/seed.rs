@@ -8,7 +8,7 @@
 use nalgebra::{SMatrix, SVector, Vector4};
 
 use super::{CourseGate, Learnt, LocalFix};
-use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
+use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, GainSensitivity, StepReport};
 use crate::inputs::{Butterworth, InputConfigError, InputDerivationConfig, InputDeriver, LowPass};
 use crate::model::Measurement;
 use crate::models::kinematic::{KinematicInput, KinematicModel};
@@ -43,6 +43,7 @@ impl SeedConfig {
                 anti_windup_ratio: 0.1,
                 excitation_sigma: 0.02,
                 noise_adaptation: None,
+                gain_sensitivity: GainSensitivity::Omitted,
             },
             inputs: InputDerivationConfig::thesis(),
             yaw_accel_cutoff_hz: 0.9,

@@ -8,7 +8,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::{CourseGate, LocalFix, Term};
-use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, StepReport};
+use crate::aekf::{Aekf, AekfConfig, AekfError, AekfState, GainSensitivity, StepReport};
 use crate::model::Measurement;
 use crate::models::effects::SensorEffects;
 use crate::models::water_kinematic::{MEASUREMENTS, WaterKinematic, idx, meas};
@@ -74,6 +74,7 @@ impl WaterBase {
             anti_windup_ratio: 0.1,
             excitation_sigma: 0.03,
             noise_adaptation: None,
+            gain_sensitivity: GainSensitivity::Omitted,
         };
         let model = WaterKinematic {
             effects: options.effects,
