@@ -15,14 +15,24 @@ use twin_core::models::otter_twin::{FAULTS, MEASUREMENTS, OtterTwin, STATES, Sha
 /// over ground (m/s), course, heading (rad), yaw rate (rad/s).
 const NOISE: [f64; MEASUREMENTS] = [0.3, 0.3, 0.05, 0.03, 0.0087, 0.0087];
 
+/// The fix interval, s.
+const DT_S: f64 = 0.2;
+
+/// Where the run, and the filter, start: at the origin, heading north at
+/// 1.4 m/s through still water.
+fn start() -> SVector<f64, STATES> {
+    let mut x = SVector::<f64, STATES>::zeros();
+    x[3] = 1.4;
+    x
+}
+
 /// A weaving run of 80 s at 5 Hz: the Otter with healthy propellers and
 /// its own profile, its shaft speeds swinging 15 rad/s either side of 70,
 /// measured with Gaussian noise from a fixed-seed generator; the speed and
 /// course over ground only `with_velocity`.
 fn weaving_run(with_velocity: bool) -> Vec<(ShaftSpeeds, Measurement<MEASUREMENTS>)> {
     let model = OtterTwin::default();
-    let mut x = SVector::<f64, STATES>::zeros();
-    x[3] = 1.4;
+    let mut x = start();
     let mut seed: u64 = 12345;
     let mut gaussian = || {
         // Irwin-Hall: twelve uniforms less six.
@@ -57,8 +67,6 @@ fn weaving_run(with_velocity: bool) -> Vec<(ShaftSpeeds, Measurement<MEASUREMENT
         .collect()
 }
 
-const DT_S: f64 = 0.2;
-
 /// The filter's estimate after `run` with the faults held at `theta`.
 fn estimate(
     run: &[(ShaftSpeeds, Measurement<MEASUREMENTS>)],
@@ -69,12 +77,10 @@ fn estimate(
     config.initial_fault_covariance = SMatrix::zeros();
     config.gain_sensitivity = gain_sensitivity;
     let filter = Aekf::new(OtterTwin::default(), config).expect("a valid filter");
-    let mut x0 = SVector::<f64, STATES>::zeros();
-    x0[3] = 1.4;
     let p0 = SMatrix::from_diagonal(&SVector::from([
         1.0, 1.0, 0.01, 0.1, 0.01, 0.01, 0.01, 0.01, 0.001, 0.0001,
     ]));
-    let mut state = AekfState::new(&config, x0, p0, theta);
+    let mut state = AekfState::new(&config, start(), p0, theta);
     for (input, y) in run {
         filter
             .step(&mut state, input, y, DT_S)
