@@ -44,10 +44,13 @@
 //! `--gain-sensitivity covariance` runs the extended twin's filter with
 //! the Kalman gain's part in the faults' sensitivity through the
 //! propagated covariance, `--gain-sensitivity exact` with all of it
-//! (`twin_core::aekf::GainSensitivity`).
+//! (`twin_core::aekf::GainSensitivity`), `--gain-sensitivity
+//! covariance-profile` through the covariance on the profile's errors
+//! alone (`AekfConfig::gain_sensitivity_faults`).
 
 use twin_core::aekf::GainSensitivity;
 use twin_core::decision::ThrusterStatus;
+use twin_core::models::otter_twin;
 use twin_core::twin::TwinConfig;
 use twin_tests::trust::{
     DETECT_WITHIN_S, Draw, MATRIX_OTHER_DRAWS, MATRIX_OWN_DRAWS, MATRIX_SEED, MUST_DETECT_LOSS,
@@ -77,6 +80,8 @@ struct Told {
     sensor_noise_scale: Option<f64>,
     /// The gain's part in the extended twin's filter's faults' sensitivity.
     gain_sensitivity: GainSensitivity,
+    /// That part on the profile's errors alone, not on the losses.
+    gain_sensitivity_profile_only: bool,
 }
 
 /// The matrix's draws of `seed`, with the gyro `told` sets.
@@ -120,6 +125,12 @@ fn config_of(draw: &Draw, told: Told, say: bool) -> Result<TwinConfig, String> {
         config = with_identified_profile(config, draw)?;
     }
     config.kinetic.filter.gain_sensitivity = told.gain_sensitivity;
+    if told.gain_sensitivity_profile_only {
+        config.kinetic.filter.gain_sensitivity_faults = [false; otter_twin::FAULTS];
+        for i in otter_twin::fault::PROFILE {
+            config.kinetic.filter.gain_sensitivity_faults[i] = true;
+        }
+    }
     Ok(config)
 }
 
@@ -138,8 +149,16 @@ fn told_option(
         "--gain-sensitivity" => {
             told.gain_sensitivity = match args.next().as_deref() {
                 Some("covariance") => GainSensitivity::ThroughCovariance,
+                Some("covariance-profile") => {
+                    told.gain_sensitivity_profile_only = true;
+                    GainSensitivity::ThroughCovariance
+                }
                 Some("exact") => GainSensitivity::Exact,
-                _ => return Err("--gain-sensitivity needs covariance or exact".into()),
+                _ => {
+                    return Err(
+                        "--gain-sensitivity needs covariance, covariance-profile or exact".into(),
+                    );
+                }
             }
         }
         "--calm" => told.calm_water = true,

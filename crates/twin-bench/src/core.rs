@@ -15,6 +15,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use twin_core::aekf::GainSensitivity;
+use twin_core::models::otter_twin;
 use twin_core::twin::TwinConfig;
 
 use crate::estimator::{self, NumpyOptions};
@@ -316,12 +317,26 @@ impl Measurements<'_> {
         push_copies_row(rows, "extended", &kinetic.time_both_copies(reps(101)));
         // What the Kalman gain's part in the faults' sensitivity costs
         // (`AekfConfig::gain_sensitivity`, not the twin's default).
-        for (form, what) in [
-            (GainSensitivity::ThroughCovariance, "through the covariance"),
-            (GainSensitivity::Exact, "exact"),
+        let mut profile_only = [false; otter_twin::FAULTS];
+        for i in otter_twin::fault::PROFILE {
+            profile_only[i] = true;
+        }
+        for (form, faults, what) in [
+            (
+                GainSensitivity::ThroughCovariance,
+                [true; otter_twin::FAULTS],
+                "through the covariance",
+            ),
+            (
+                GainSensitivity::ThroughCovariance,
+                profile_only,
+                "through the covariance, the profile's errors only",
+            ),
+            (GainSensitivity::Exact, [true; otter_twin::FAULTS], "exact"),
         ] {
             let mut with_gain = config;
             with_gain.kinetic.filter.gain_sensitivity = form;
+            with_gain.kinetic.filter.gain_sensitivity_faults = faults;
             let t = workloads::kinetic_steps(demo_inputs, with_gain)?.time(reps(31));
             rows.push(Row::plain(
                 format!("AEKF step, extended model, the gain's part in Upsilon {what}"),

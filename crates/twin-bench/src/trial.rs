@@ -384,6 +384,7 @@ impl TrialFile {
             excitation_sigma: c.excitation_sigma,
             noise_adaptation,
             gain_sensitivity: GainSensitivity::Omitted,
+            gain_sensitivity_faults: [true; _],
         };
         let filter = Aekf::new(KinematicModel, config)?;
         let start = AekfState::new(

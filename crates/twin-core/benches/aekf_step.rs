@@ -21,6 +21,7 @@ fn seed_config() -> AekfConfig<4, 4, 2> {
         excitation_sigma: 0.02,
         noise_adaptation: None,
         gain_sensitivity: GainSensitivity::Omitted,
+        gain_sensitivity_faults: [true; _],
     }
 }
 

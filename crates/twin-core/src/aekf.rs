@@ -112,6 +112,10 @@ pub struct AekfConfig<const N: usize, const M: usize, const P: usize> {
     /// sensitivity `Upsilon` carries (the module's docs;
     /// [`GainSensitivity::Omitted`] is the seed's recursion).
     pub gain_sensitivity: GainSensitivity,
+    /// The faults whose sensitivity carries the gain's part where
+    /// [`Self::gain_sensitivity`] asks for it; the others' columns of
+    /// `Upsilon` are step 7's as published, and cost nothing.
+    pub gain_sensitivity_faults: [bool; P],
 }
 
 /// The Kalman gain's part in the faults' sensitivity `Upsilon` (step 7).
@@ -350,6 +354,10 @@ struct GainTerms<'a, const N: usize, const M: usize, const P: usize> {
     k: &'a SMatrix<f64, N, M>,
     /// `P-`.
     p_prior: &'a SMatrix<f64, N, N>,
+    /// `H P-`.
+    h_p: &'a SMatrix<f64, M, N>,
+    /// The structural zeros of `H` (and of its change along the faults).
+    h_pattern: &'a Pattern<M, N>,
     /// `F Upsilon + Psi`: the predicted state's sensitivity to the faults.
     f_ups_psi: &'a SMatrix<f64, N, P>,
     /// The innovation.
@@ -559,17 +567,23 @@ where
         f: &SMatrix<f64, N, N>,
         dt_s: f64,
     ) -> [SMatrix<f64, N, N>; P] {
-        let p_ft = state.p * f.transpose();
+        let f_pattern = &Mdl::TRANSITION_PATTERN;
+        let p_ft = mul_t_sparse(&state.p, f, f_pattern);
         std::array::from_fn(|i| {
+            if !self.config.gain_sensitivity_faults[i] {
+                return SMatrix::zeros();
+            }
             let mut theta = state.theta;
             theta[i] += SENSITIVITY_STEP;
             let x = state.x + state.upsilon.column(i) * SENSITIVITY_STEP;
             let moved = self.model.transition(&x, input, &theta, dt_s).jacobian;
+            // Both Jacobians keep to the pattern, and so does their difference.
             let df = (moved - f) / SENSITIVITY_STEP;
-            let spread = df * p_ft;
-            let dp =
-                spread + spread.transpose() + f * state.covariance_sensitivity[i] * f.transpose();
-            (dp + dp.transpose()) * 0.5
+            let spread = mul_sparse_left(&df, f_pattern, &p_ft);
+            let f_dp = mul_sparse_left(f, f_pattern, &state.covariance_sensitivity[i]);
+            // Exactly symmetric: a sum of a matrix and its transpose, and a
+            // mirrored product.
+            spread + spread.transpose() + sym_mul_t_sparse(&f_dp, f, f_pattern)
         })
     }
 
@@ -589,31 +603,36 @@ where
         dp_prior: &[SMatrix<f64, N, N>; P],
         upsilon: &mut SMatrix<f64, N, P>,
     ) -> [SMatrix<f64, N, N>; P] {
-        let i_kh = SMatrix::<f64, N, N>::identity() - gain.k * gain.h;
-        let i_kh_p = i_kh * gain.p_prior;
+        let h_pattern = gain.h_pattern;
         let exact = self.config.gain_sensitivity == GainSensitivity::Exact;
+        // (I - K H) P-, for the exact form's dH term.
+        let i_kh_p = exact.then(|| gain.p_prior - mul(gain.k, gain.h_p));
         std::array::from_fn(|i| {
-            let mut dh = SMatrix::<f64, M, N>::zeros();
-            if exact {
+            if !self.config.gain_sensitivity_faults[i] {
+                return SMatrix::zeros();
+            }
+            // (I - K H) dP-, the part both forms share.
+            let i_kh_dp =
+                dp_prior[i] - mul(gain.k, &mul_sparse_left(gain.h, h_pattern, &dp_prior[i]));
+            let mut before_sigma = mul_t_sparse(&i_kh_dp, gain.h, h_pattern);
+            let mut k_dh_p = SMatrix::<f64, N, N>::zeros();
+            if let Some(i_kh_p) = &i_kh_p {
                 let moved = gain.x_bar + gain.f_ups_psi.column(i) * SENSITIVITY_STEP;
-                dh = (self.model.observe(&moved).jacobian - gain.observed_jacobian)
+                let mut dh = (self.model.observe(&moved).jacobian - gain.observed_jacobian)
                     / SENSITIVITY_STEP;
                 for (m, available) in gain.available.iter().enumerate() {
                     if !available {
                         dh.set_row(m, &SMatrix::<f64, 1, N>::zeros());
                     }
                 }
+                k_dh_p = mul(gain.k, &mul_sparse_left(&dh, h_pattern, gain.p_prior));
+                before_sigma +=
+                    mul_t_sparse(i_kh_p, &dh, h_pattern) - mul_t_sparse(&k_dh_p, gain.h, h_pattern);
             }
-            let dh_p = dh * gain.p_prior;
-            let before_sigma = i_kh * dp_prior[i] * gain.h.transpose() + i_kh_p * dh.transpose()
-                - gain.k * dh_p * gain.h.transpose();
             // dK = before_sigma Sigma^-1, Sigma symmetric: (Sigma^-1 before_sigma^T)^T.
             let dk = sigma_chol.solve(&before_sigma.transpose()).transpose();
             upsilon.set_column(i, &(upsilon.column(i) + dk * gain.innovation));
-            let dp = dp_prior[i]
-                - dk * gain.h * gain.p_prior
-                - gain.k * dh_p
-                - gain.k * gain.h * dp_prior[i];
+            let dp = i_kh_dp - mul(&dk, gain.h_p) - k_dh_p;
             (dp + dp.transpose()) * 0.5
         })
     }
@@ -707,6 +726,8 @@ where
                 h: &h,
                 k: &k,
                 p_prior: &p_prior,
+                h_p: &h_p,
+                h_pattern,
                 f_ups_psi: &f_ups_psi,
                 innovation: &innovation,
                 available: &y.available,

@@ -3,13 +3,15 @@
 //! with respect to the faults: the extended twin's filter, its faults held
 //! (no fault covariance), run twice over the same measurements with one
 //! fault moved either way, differs by `Upsilon` times the move; through
-//! the covariance alone, where the measurement model is linear.
+//! the covariance alone, where the measurement model is linear; and a fault
+//! left out of the gain's part (`AekfConfig::gain_sensitivity_faults`)
+//! keeps step 7's column as published.
 
 use nalgebra::{SMatrix, SVector};
 use twin_core::aekf::{Aekf, AekfState, GainSensitivity};
 use twin_core::estimator::KineticConfig;
 use twin_core::model::{Measurement, Model};
-use twin_core::models::otter_twin::{FAULTS, MEASUREMENTS, OtterTwin, STATES, ShaftSpeeds};
+use twin_core::models::otter_twin::{FAULTS, MEASUREMENTS, OtterTwin, STATES, ShaftSpeeds, fault};
 
 /// Standard deviations of the simulated measurements: position (m), speed
 /// over ground (m/s), course, heading (rad), yaw rate (rad/s).
@@ -67,15 +69,21 @@ fn weaving_run(with_velocity: bool) -> Vec<(ShaftSpeeds, Measurement<MEASUREMENT
         .collect()
 }
 
-/// The filter's estimate after `run` with the faults held at `theta`.
+/// Every fault carries the gain's part.
+const ALL_FAULTS: [bool; FAULTS] = [true; FAULTS];
+
+/// The filter's estimate after `run` with the faults held at `theta`, the
+/// gain's part on the `faults` marked.
 fn estimate(
     run: &[(ShaftSpeeds, Measurement<MEASUREMENTS>)],
     theta: SVector<f64, FAULTS>,
     gain_sensitivity: GainSensitivity,
+    faults: [bool; FAULTS],
 ) -> AekfState<STATES, MEASUREMENTS, FAULTS> {
     let mut config = KineticConfig::otter().filter;
     config.initial_fault_covariance = SMatrix::zeros();
     config.gain_sensitivity = gain_sensitivity;
+    config.gain_sensitivity_faults = faults;
     let filter = Aekf::new(OtterTwin::default(), config).expect("a valid filter");
     let p0 = SMatrix::from_diagonal(&SVector::from([
         1.0, 1.0, 0.01, 0.1, 0.01, 0.01, 0.01, 0.01, 0.001, 0.0001,
@@ -89,20 +97,31 @@ fn estimate(
     state
 }
 
-/// The largest relative difference, over the faults, between `Upsilon`
-/// and the central difference of the estimate.
-fn worst_relative_error(gain_sensitivity: GainSensitivity, with_velocity: bool) -> f64 {
+/// The faults the runs are held at.
+fn held_faults() -> SVector<f64, FAULTS> {
+    SVector::from([0.1, 0.05, 0.1, 0.05, -0.05, 0.1])
+}
+
+/// The largest relative difference, over the `faults` marked, between
+/// `Upsilon` and the central difference of the estimate, the gain's part
+/// on those faults.
+fn worst_relative_error(
+    gain_sensitivity: GainSensitivity,
+    with_velocity: bool,
+    faults: [bool; FAULTS],
+) -> f64 {
     let run = weaving_run(with_velocity);
-    let theta = SVector::<f64, FAULTS>::from([0.1, 0.05, 0.1, 0.05, -0.05, 0.1]);
-    let at = estimate(&run, theta, gain_sensitivity);
+    let theta = held_faults();
+    let at = estimate(&run, theta, gain_sensitivity, faults);
     let step = 1e-5;
     (0..FAULTS)
+        .filter(|&i| faults[i])
         .map(|i| {
             let (mut up, mut down) = (theta, theta);
             up[i] += step;
             down[i] -= step;
-            let numeric = (estimate(&run, up, gain_sensitivity).x
-                - estimate(&run, down, gain_sensitivity).x)
+            let numeric = (estimate(&run, up, gain_sensitivity, faults).x
+                - estimate(&run, down, gain_sensitivity, faults).x)
                 / (2.0 * step);
             (numeric - at.upsilon.column(i)).norm() / numeric.norm()
         })
@@ -112,7 +131,7 @@ fn worst_relative_error(gain_sensitivity: GainSensitivity, with_velocity: bool) 
 #[test]
 fn upsilon_with_the_gains_part_is_the_estimates_derivative() {
     // Without the gain's part the same comparison is 21 % off.
-    let worst = worst_relative_error(GainSensitivity::Exact, true);
+    let worst = worst_relative_error(GainSensitivity::Exact, true, ALL_FAULTS);
     assert!(worst < 0.05, "Upsilon is {worst:.3} off the derivative");
 }
 
@@ -121,6 +140,41 @@ fn through_the_covariance_it_is_the_derivative_where_h_is_constant() {
     // Positions, heading and yaw rate: a measurement Jacobian that does
     // not depend on the state, where the covariance carries all of the
     // gain's dependence (without it, 62 % off).
-    let worst = worst_relative_error(GainSensitivity::ThroughCovariance, false);
+    let worst = worst_relative_error(GainSensitivity::ThroughCovariance, false, ALL_FAULTS);
     assert!(worst < 0.05, "Upsilon is {worst:.3} off the derivative");
+}
+
+#[test]
+fn a_fault_left_out_keeps_the_published_column_and_the_others_stay_exact() {
+    // The gain's part on the profile's errors alone: their columns are
+    // still the derivative, and the losses' columns are step 7's as
+    // published, to the bit.
+    let mut profile_only = [false; FAULTS];
+    for i in fault::PROFILE {
+        profile_only[i] = true;
+    }
+    let worst = worst_relative_error(GainSensitivity::Exact, true, profile_only);
+    assert!(worst < 0.05, "Upsilon is {worst:.3} off the derivative");
+    let run = weaving_run(true);
+    let with = estimate(&run, held_faults(), GainSensitivity::Exact, profile_only);
+    let without = estimate(&run, held_faults(), GainSensitivity::Omitted, ALL_FAULTS);
+    for i in [fault::PORT, fault::STARBOARD] {
+        assert_eq!(
+            with.upsilon.column(i),
+            without.upsilon.column(i),
+            "fault {i}"
+        );
+        assert_eq!(
+            with.covariance_sensitivity[i],
+            SMatrix::<f64, STATES, STATES>::zeros(),
+            "fault {i}"
+        );
+    }
+    for i in fault::PROFILE {
+        assert_ne!(
+            with.upsilon.column(i),
+            without.upsilon.column(i),
+            "fault {i}"
+        );
+    }
 }

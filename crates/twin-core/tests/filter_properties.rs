@@ -26,6 +26,7 @@ fn config(q_density: Vector4<f64>, r_sigma: Vector4<f64>, tau_s: f64) -> AekfCon
         excitation_sigma: 0.02,
         noise_adaptation: None,
         gain_sensitivity: GainSensitivity::Omitted,
+        gain_sensitivity_faults: [true; _],
     }
 }
 

@@ -48,6 +48,7 @@ fn forecast_coverage(propagation: Propagation, calibration_steps: usize) -> (f64
         excitation_sigma: 0.02,
         noise_adaptation: None,
         gain_sensitivity: GainSensitivity::Omitted,
+        gain_sensitivity_faults: [true; _],
     };
     let filter = Aekf::new(KinematicModel, config).unwrap();
     let (mut within1, mut within2, mut total) = (0usize, 0usize, 0usize);

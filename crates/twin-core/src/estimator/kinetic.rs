@@ -250,6 +250,7 @@ impl KineticConfig {
                 excitation_sigma: 0.03,
                 noise_adaptation: None,
                 gain_sensitivity: GainSensitivity::Omitted,
+                gain_sensitivity_faults: [true; _],
             },
             initial_current_sigma_mps: 0.5,
             estimate_current: true,

@@ -44,6 +44,7 @@ impl SeedConfig {
                 excitation_sigma: 0.02,
                 noise_adaptation: None,
                 gain_sensitivity: GainSensitivity::Omitted,
+                gain_sensitivity_faults: [true; _],
             },
             inputs: InputDerivationConfig::thesis(),
             yaw_accel_cutoff_hz: 0.9,

@@ -75,6 +75,7 @@ impl WaterBase {
             excitation_sigma: 0.03,
             noise_adaptation: None,
             gain_sensitivity: GainSensitivity::Omitted,
+            gain_sensitivity_faults: [true; _],
         };
         let model = WaterKinematic {
             effects: options.effects,
