@@ -126,10 +126,7 @@ fn config_of(draw: &Draw, told: Told, say: bool) -> Result<TwinConfig, String> {
     }
     config.kinetic.filter.gain_sensitivity = told.gain_sensitivity;
     if told.gain_sensitivity_profile_only {
-        config.kinetic.filter.gain_sensitivity_faults = [false; otter_twin::FAULTS];
-        for i in otter_twin::fault::PROFILE {
-            config.kinetic.filter.gain_sensitivity_faults[i] = true;
-        }
+        config.kinetic.filter.gain_sensitivity_faults = otter_twin::fault::IS_PROFILE;
     }
     Ok(config)
 }

@@ -317,10 +317,6 @@ impl Measurements<'_> {
         push_copies_row(rows, "extended", &kinetic.time_both_copies(reps(101)));
         // What the Kalman gain's part in the faults' sensitivity costs
         // (`AekfConfig::gain_sensitivity`, not the twin's default).
-        let mut profile_only = [false; otter_twin::FAULTS];
-        for i in otter_twin::fault::PROFILE {
-            profile_only[i] = true;
-        }
         for (form, faults, what) in [
             (
                 GainSensitivity::ThroughCovariance,
@@ -329,7 +325,7 @@ impl Measurements<'_> {
             ),
             (
                 GainSensitivity::ThroughCovariance,
-                profile_only,
+                otter_twin::fault::IS_PROFILE,
                 "through the covariance, the profile's errors only",
             ),
             (GainSensitivity::Exact, [true; otter_twin::FAULTS], "exact"),

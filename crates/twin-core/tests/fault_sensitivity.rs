@@ -149,10 +149,7 @@ fn a_fault_left_out_keeps_the_published_column_and_the_others_stay_exact() {
     // The gain's part on the profile's errors alone: their columns are
     // still the derivative, and the losses' columns are step 7's as
     // published, to the bit.
-    let mut profile_only = [false; FAULTS];
-    for i in fault::PROFILE {
-        profile_only[i] = true;
-    }
+    let profile_only = fault::IS_PROFILE;
     let worst = worst_relative_error(GainSensitivity::Exact, true, profile_only);
     assert!(worst < 0.05, "Upsilon is {worst:.3} off the derivative");
     let run = weaving_run(true);

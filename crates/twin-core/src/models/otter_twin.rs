@@ -180,6 +180,17 @@ pub mod fault {
     pub const MASS: usize = 5;
     /// The profile's errors, in order.
     pub const PROFILE: [usize; 4] = [SURGE_DAMPING, YAW_DAMPING, THRUST, MASS];
+    /// Whether each fault is one of [`PROFILE`] (a mask over the faults,
+    /// such as `AekfConfig::gain_sensitivity_faults` takes).
+    pub const IS_PROFILE: [bool; super::FAULTS] = {
+        let mut mask = [false; super::FAULTS];
+        let mut k = 0;
+        while k < PROFILE.len() {
+            mask[PROFILE[k]] = true;
+            k += 1;
+        }
+        mask
+    };
 }
 
 /// A pattern with `true` at the listed `(row, column)` entries.
@@ -1053,6 +1064,18 @@ mod tests {
 
     fn faults() -> Faults {
         Faults::from([0.2, 0.05, 0.15, -0.1, 0.12, -0.08])
+    }
+
+    #[test]
+    fn the_profile_mask_marks_the_profiles_errors_and_nothing_else() {
+        for i in 0..FAULTS {
+            assert_eq!(
+                fault::IS_PROFILE[i],
+                fault::PROFILE.contains(&i),
+                "fault {i}"
+            );
+        }
+        assert!(!fault::IS_PROFILE[fault::PORT] && !fault::IS_PROFILE[fault::STARBOARD]);
     }
 
     #[test]
