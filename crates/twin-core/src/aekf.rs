@@ -129,11 +129,13 @@ pub enum GainSensitivity {
     /// (`dP-/dtheta` from the transition Jacobian's change along the
     /// faults), not through the point where the measurement model is
     /// linearised: exact where `H` does not depend on the state. One
-    /// transition per fault per step, besides the products.
+    /// transition per fault it is on
+    /// ([`AekfConfig::gain_sensitivity_faults`]) per step, besides the
+    /// products.
     ThroughCovariance,
     /// Both: `Upsilon` is the derivative of the state estimate with
-    /// respect to the faults. A transition and a measurement model per
-    /// fault per step, besides the products.
+    /// respect to the faults it is on. A transition and a measurement
+    /// model per such fault per step, besides the products.
     Exact,
 }
 
