@@ -92,7 +92,7 @@ fn headline_parameters(cause: &str) -> &'static [&'static str] {
         "sog_scale" | "stw_scale" => &["scale"],
         "gnss_latency" => &["latency_s"],
         "lever_arm" => &["x_m", "y_m"],
-        "sideslip" => &["lateral_mps_per_radps"],
+        "sideslip" | "sideslip_with_speed" => &["lateral_mps_per_radps"],
         _ => &[],
     }
 }

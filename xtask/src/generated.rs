@@ -108,6 +108,12 @@ pub const BLOCKS: &[Block] = &[
         shape: Shape::Fenced,
     },
     Block {
+        name: "diagnose-without-propellers-othersim",
+        file: "docs/accuracy.md",
+        command: "cargo test -q -p twin-cli --test hidden_effects_othersim the_hulls_drift -- --nocapture 2>/dev/null | grep -E '^draw'",
+        shape: Shape::Fenced,
+    },
+    Block {
         name: "identify-workboat",
         file: "docs/identification.md",
         command: "cargo build --release -q -p twin-cli && r=$PWD && t=$r/target/release/twin && cd \"$(mktemp -d)\" \

@@ -37,7 +37,10 @@
 //! reported over true), `gnss_latency` (`latency_s`: how much older the GNSS
 //! data are than their stamps), `lever_arm` (`x_m`, `y_m`: the antenna's
 //! offset forward and to starboard from the profile's antenna),
-//! `stw_scale` (`scale`), `sideslip` (`lateral_mps_per_radps`),
+//! `stw_scale` (`scale`), `sideslip` (`lateral_mps_per_radps`: the hull's
+//! sway per yaw rate), `sideslip_with_speed` (`lateral_mps_per_radps`: a
+//! sway growing with the speed through water, at the log's mean speed
+//! under way),
 //! `yaw_rate_scale` (`scale`: the rate sensor's yaw rate over the true one),
 //! `yaw_rate_bias` (`bias_deg_s`: what the rate sensor reads at rest), and
 //! the profile's own parameters on the kinetic base, each a `scale` over

@@ -49,7 +49,7 @@ fn scale_of(r: &DiagnoseReport, cause: &str) -> Option<f64> {
 }
 
 /// The causes that describe a sensor, the water or a propeller.
-const NOT_THE_HULL: [&str; 7] = [
+const NOT_THE_HULL: [&str; 8] = [
     "current",
     "thruster_loss",
     "heading_offset",
@@ -57,6 +57,7 @@ const NOT_THE_HULL: [&str; 7] = [
     "gnss_latency",
     "lever_arm",
     "sideslip",
+    "sideslip_with_speed",
 ];
 
 fn no_false_cause(r: &DiagnoseReport) {

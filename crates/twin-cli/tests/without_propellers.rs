@@ -16,7 +16,7 @@ mod hidden;
 #[allow(dead_code)]
 mod twin_sim_draws;
 
-use hidden::{Hidden, describe, draw_gyro, judge_without_propellers, named};
+use hidden::{Hidden, describe, draw_gyro, is_sideslip, judge_without_propellers, named};
 use twin_sim_draws::{apply, base, diagnose_scenario, diagnose_scenario_on, on_two_threads};
 use twin_wire::profile::VesselProfile;
 
@@ -79,7 +79,7 @@ fn a_log_without_propellers_is_measured_at_the_antenna_its_profile_states() {
     let sideslip = r
         .findings
         .iter()
-        .find(|f| f.cause == "sideslip")
+        .find(|f| is_sideslip(&f.cause))
         .unwrap_or_else(|| panic!("no drift named: {found}"));
     let k = sideslip.parameters["lateral_mps_per_radps"]
         .as_f64()

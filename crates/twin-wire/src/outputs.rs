@@ -616,7 +616,7 @@ pub struct RefusedSender {
 pub struct FindingJson {
     /// The cause: `current`, `thruster_loss`, `heading_offset`, `sog_scale`,
     /// `gnss_latency`, `lever_arm`, `stw_scale`, `sideslip`,
-    /// `yaw_rate_scale`, `yaw_rate_bias`, `surge_damping`, `yaw_damping`,
+    /// `sideslip_with_speed`, `yaw_rate_scale`, `yaw_rate_bias`, `surge_damping`, `yaw_damping`,
     /// `mass`.
     pub cause: String,
     /// Its parameters (numbers, and `side` for a thruster loss).

@@ -138,22 +138,30 @@ pub fn judge(h: Hidden, r: &DiagnoseReport) -> Result<(), String> {
 
 /// The verdict on a diagnosis of a log without propeller data hiding `h`,
 /// which the kinematic water base diagnoses: the simulated hull's own drift
-/// in its turns, if named, as an outward sideslip (negative); the rest by
+/// in its turns, if named, as an outward sideslip (negative, of either
+/// shape: [`is_sideslip`]); the rest by
 /// [`judge`] (used by the tests of logs without propeller data only).
 #[allow(dead_code)]
 pub fn judge_without_propellers(h: Hidden, r: &DiagnoseReport) -> Result<(), String> {
     if r.base_model != "water" {
         return Err(format!("diagnosed on the {} base", r.base_model));
     }
-    if let Some(f) = r.findings.iter().find(|f| f.cause == "sideslip") {
+    if let Some(f) = r.findings.iter().find(|f| is_sideslip(&f.cause)) {
         let k = f.parameters["lateral_mps_per_radps"].as_f64().unwrap();
         if k >= 0.0 {
             return Err(format!("a sideslip of {k:.3} m/s per rad/s, inward"));
         }
     }
     let mut others = r.clone();
-    others.findings.retain(|f| f.cause != "sideslip");
+    others.findings.retain(|f| !is_sideslip(&f.cause));
     judge(h, &others)
+}
+
+/// Whether `cause` is the hull's drift in its turns, of either shape (its
+/// sway in proportion to the yaw rate, or to the yaw rate and the speed).
+#[allow(dead_code)]
+pub fn is_sideslip(cause: &str) -> bool {
+    matches!(cause, "sideslip" | "sideslip_with_speed")
 }
 
 /// The hidden effect in the table's words.
@@ -206,7 +214,11 @@ pub fn named(r: &DiagnoseReport) -> String {
                     p("loss")
                 ),
                 "lever_arm" => format!("lever arm x {:.2} m, y {:.2} m", p("x_m"), p("y_m")),
-                "sideslip" => format!("sideslip {:.3} m/s per rad/s", p("lateral_mps_per_radps")),
+                "sideslip" | "sideslip_with_speed" => format!(
+                    "{} {:.3} m/s per rad/s",
+                    f.cause,
+                    p("lateral_mps_per_radps")
+                ),
                 "surge_damping" | "yaw_damping" | "mass" => {
                     format!("{} x {:.3}", f.cause, p("scale"))
                 }

@@ -32,6 +32,10 @@ pub enum Cause {
     /// The hull slides sideways in turns, in proportion to the turn rate
     /// (kinematic base only; the Otter's twin models its sway).
     Sideslip,
+    /// The hull slides sideways in turns in proportion to the turn rate
+    /// and its speed through water: a drift angle per turn rate, as a hull
+    /// whose damping does not grow with speed drifts (kinematic base only).
+    SideslipWithSpeed,
     /// The hull's resistance in surge differs from the profile's (fouling,
     /// a load, a different hull): the surge damping rescaled.
     SurgeDamping,
@@ -49,7 +53,7 @@ pub enum Cause {
 
 impl Cause {
     /// Every cause, in the order they are tried.
-    pub const ALL: [Cause; 13] = [
+    pub const ALL: [Cause; 14] = [
         Cause::Current,
         Cause::ThrusterLoss,
         Cause::HeadingOffset,
@@ -58,6 +62,7 @@ impl Cause {
         Cause::LeverArm,
         Cause::StwScale,
         Cause::Sideslip,
+        Cause::SideslipWithSpeed,
         Cause::SurgeDamping,
         Cause::YawDamping,
         Cause::Mass,
@@ -76,6 +81,7 @@ impl Cause {
             Cause::LeverArm => &LEVER_ARM,
             Cause::StwScale => &STW_SCALE,
             Cause::Sideslip => &SIDESLIP,
+            Cause::SideslipWithSpeed => &SIDESLIP_WITH_SPEED,
             Cause::SurgeDamping => &SURGE_DAMPING,
             Cause::YawDamping => &YAW_DAMPING,
             Cause::Mass => &MASS,
@@ -96,6 +102,12 @@ impl Cause {
             Search::Scalar(_) => 1,
             Search::States(_) | Search::Plane(_) => 2,
         }
+    }
+
+    /// Whether it and `other` are shapes of one effect, never named
+    /// together ([`CauseSpec::excludes`], either way).
+    pub(super) fn excludes(self, other: Cause) -> bool {
+        self.spec().excludes.contains(&other) || other.spec().excludes.contains(&self)
     }
 
     /// Whether the cause can be tried on a log of this kind.
@@ -134,6 +146,10 @@ pub(super) struct CauseSpec {
     /// the one that is not is named. A hull drifts in every turn and water
     /// moves; a sensor is wrong only when it is.
     pub sensor_error: bool,
+    /// Causes never named beside it: other shapes of the same effect (a
+    /// second shape beside the first fits what lies between them, a
+    /// correction no hull has, not a second effect).
+    pub excludes: &'static [Cause],
     /// How it is searched, and how its parameters are reported.
     pub search: Search,
 }
@@ -379,6 +395,7 @@ static CURRENT: CauseSpec = CauseSpec {
     name: "current",
     must_improve_forecast: false,
     sensor_error: false,
+    excludes: &[],
     applies: always,
     search: Search::States(StateSearch {
         free: free_current,
@@ -396,6 +413,7 @@ static THRUSTER_LOSS: CauseSpec = CauseSpec {
     name: "thruster_loss",
     must_improve_forecast: false,
     sensor_error: false,
+    excludes: &[],
     applies: |log| log.base == BaseModel::Kinetic,
     search: Search::States(StateSearch {
         free: free_losses,
@@ -430,6 +448,7 @@ static HEADING_OFFSET: CauseSpec = CauseSpec {
     name: "heading_offset",
     must_improve_forecast: false,
     sensor_error: true,
+    excludes: &[],
     applies: |log| log.has_heading,
     search: Search::Scalar(ScalarSearch {
         parameter: "offset_deg",
@@ -447,6 +466,7 @@ static SOG_SCALE: CauseSpec = CauseSpec {
     name: "sog_scale",
     must_improve_forecast: false,
     sensor_error: true,
+    excludes: &[],
     applies: always,
     search: Search::Scalar(ScalarSearch {
         parameter: "scale",
@@ -464,6 +484,7 @@ static GNSS_LATENCY: CauseSpec = CauseSpec {
     name: "gnss_latency",
     must_improve_forecast: false,
     sensor_error: true,
+    excludes: &[],
     // Seen in the fixes' positions against the vessel's motion.
     applies: |log| log.has_position,
     // A fix is stamped at or after the instant it describes, never before:
@@ -484,6 +505,7 @@ static LEVER_ARM: CauseSpec = CauseSpec {
     name: "lever_arm",
     must_improve_forecast: false,
     sensor_error: true,
+    excludes: &[],
     // The water base needs a heading to turn a body offset into the fix's.
     // Seen in the fixes' positions as the hull turns.
     applies: |log| log.has_position && (log.base == BaseModel::Kinetic || log.has_heading),
@@ -510,6 +532,7 @@ static STW_SCALE: CauseSpec = CauseSpec {
     name: "stw_scale",
     must_improve_forecast: false,
     sensor_error: true,
+    excludes: &[],
     applies: |log| log.base == BaseModel::Water && log.has_stw,
     search: Search::Scalar(ScalarSearch {
         parameter: "scale",
@@ -523,22 +546,52 @@ static STW_SCALE: CauseSpec = CauseSpec {
     }),
 };
 
-static SIDESLIP: CauseSpec = CauseSpec {
-    name: "sideslip",
-    must_improve_forecast: false,
-    sensor_error: false,
-    applies: |log| log.base == BaseModel::Water && log.has_heading,
-    search: Search::Scalar(ScalarSearch {
-        parameter: "lateral_mps_per_radps",
-        bounds: (-20.0, 20.0),
-        grid: 8,
-        neutral: 0.0,
-        set: |h, v| h.sideslip_m = v,
-        shown: identity,
-        practical: |acc| acc.min_sideslip_m,
-        below_means: None,
-    }),
-};
+/// The hull's drift in its turns as a sway per yaw rate, `v = k r`, at
+/// any speed.
+static SIDESLIP: CauseSpec = drift(
+    "sideslip",
+    |h, v| h.sideslip_m = v,
+    &[Cause::SideslipWithSpeed],
+);
+
+/// The sideslip whose sway grows with the speed through water (`v = k_u u
+/// r`), reported and bounded as the sway per yaw rate at the log's speed
+/// under way, so that its size reads as the [`SIDESLIP`]'s does. The two
+/// shapes agree at one speed; a log whose speed changes tells them apart
+/// (the independent simulator's Otter drifts as this one, the Furuno
+/// motor boats as the other).
+static SIDESLIP_WITH_SPEED: CauseSpec = drift(
+    "sideslip_with_speed",
+    |h, v| h.speed_sideslip_m = v,
+    &[Cause::Sideslip],
+);
+
+/// A shape of the hull's drift in its turns (kinematic base, with a
+/// heading): its sway per yaw rate, m/s per rad/s, set in the hypothesis
+/// by `set`; never named beside the `other_shape`.
+const fn drift(
+    name: &'static str,
+    set: fn(&mut Hypothesis, f64),
+    other_shape: &'static [Cause],
+) -> CauseSpec {
+    CauseSpec {
+        name,
+        must_improve_forecast: false,
+        sensor_error: false,
+        excludes: other_shape,
+        applies: |log| log.base == BaseModel::Water && log.has_heading,
+        search: Search::Scalar(ScalarSearch {
+            parameter: "lateral_mps_per_radps",
+            bounds: (-20.0, 20.0),
+            grid: 8,
+            neutral: 0.0,
+            set,
+            shown: identity,
+            practical: |acc| acc.min_sideslip_m,
+            below_means: None,
+        }),
+    }
+}
 
 /// A model-parameter cause: one of the profile's parameters in
 /// [`Hypothesis::profile_scales`] rescaled, on the kinetic base. Searched
@@ -557,6 +610,7 @@ const fn profile_scale(name: &'static str, set: fn(&mut Hypothesis, f64)) -> Cau
         applies: kinetic_with_positions,
         must_improve_forecast: true,
         sensor_error: false,
+        excludes: &[],
         search: Search::Scalar(ScalarSearch {
             parameter: "scale",
             bounds: (0.4, 2.5),
@@ -586,6 +640,7 @@ static YAW_RATE_SCALE: CauseSpec = CauseSpec {
     name: "yaw_rate_scale",
     must_improve_forecast: false,
     sensor_error: true,
+    excludes: &[],
     applies: rate_sensor_told,
     // A rate gyro's scale factor is within a few per cent of one, a rate of
     // turn damped by its sensor reads low in a turn: beyond 20 % the rate is
@@ -606,6 +661,7 @@ static YAW_RATE_BIAS: CauseSpec = CauseSpec {
     name: "yaw_rate_bias",
     must_improve_forecast: false,
     sensor_error: true,
+    excludes: &[],
     applies: rate_sensor_told,
     // An uncalibrated MEMS gyro's bias is within a degree or two a second,
     // a rate of turn's zero within a fraction of that: beyond 3 deg/s the
@@ -748,10 +804,13 @@ mod tests {
                 applies(Cause::StwScale),
                 kind.base == BaseModel::Water && kind.has_stw
             );
-            assert_eq!(
-                applies(Cause::Sideslip),
-                kind.base == BaseModel::Water && kind.has_heading
-            );
+            for c in [Cause::Sideslip, Cause::SideslipWithSpeed] {
+                assert_eq!(
+                    applies(c),
+                    kind.base == BaseModel::Water && kind.has_heading,
+                    "{c:?}"
+                );
+            }
             assert_eq!(
                 applies(Cause::LeverArm),
                 kind.has_position && (kind.base == BaseModel::Kinetic || kind.has_heading)
@@ -772,6 +831,31 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The two shapes of the hull's drift exclude each other, both ways,
+    /// each sets its own part of the hypothesis, and no other pair of
+    /// causes excludes each other.
+    #[test]
+    fn the_two_shapes_of_a_drift_exclude_each_other_and_nothing_else_does() {
+        let (a, b) = (Cause::Sideslip, Cause::SideslipWithSpeed);
+        assert!(a.excludes(b) && b.excludes(a));
+        for c in Cause::ALL {
+            for d in Cause::ALL {
+                let pair = (c == a && d == b) || (c == b && d == a);
+                assert_eq!(c.excludes(d), pair, "{c:?} and {d:?}");
+            }
+        }
+        let set = |c: Cause| {
+            let Search::Scalar(s) = &c.spec().search else {
+                panic!("{c:?} is one scalar");
+            };
+            let mut h = Hypothesis::nominal();
+            (s.set)(&mut h, -0.7);
+            (h.sideslip_m, h.speed_sideslip_m)
+        };
+        assert_eq!(set(a), (-0.7, 0.0));
+        assert_eq!(set(b), (0.0, -0.7));
     }
 
     /// Each model-parameter cause rescales its own parameter of the

@@ -61,8 +61,11 @@ impl Default for Acceptance {
     /// A likelihood ratio of e^10 on held-out data, 3 sigma, and sizes at
     /// which a user would act: 5 cm/s of current, 3 % of thrust, 1 deg of
     /// heading, 1 % of speed, 0.1 s of latency, 30 cm of antenna offset, 2 %
-    /// of a log's speed (paddle wheels are rarely better calibrated), and a
-    /// sideslip of 0.5 m/s per rad/s (a degree of drift in an ordinary turn),
+    /// of a log's speed (paddle wheels are rarely better calibrated), a
+    /// sideslip of 0.15 m/s per rad/s (it bends the course as a GNSS
+    /// latency of 0.1 s does at 1.5 m/s: a drift too small to report must
+    /// not leave the latency it imitates to be named in its place; half a
+    /// degree of drift at 1.5 m/s in a turn of 0.1 rad/s),
     /// 10 % of a profile's parameter, 2 % of a rate sensor's yaw rate and
     /// 0.1 deg/s of its bias (a degree of heading every ten seconds). The
     /// data are unexplained when the innovations after the findings are
@@ -82,7 +85,7 @@ impl Default for Acceptance {
             min_latency_s: 0.1,
             min_lever_arm_m: 0.3,
             min_stw_scale_error: 0.02,
-            min_sideslip_m: 0.5,
+            min_sideslip_m: 0.15,
             min_profile_scale_error: 0.1,
             min_yaw_rate_scale_error: 0.02,
             min_yaw_rate_bias_radps: 0.1f64.to_radians(),
@@ -272,6 +275,10 @@ pub(super) struct Hypothesis {
     pub effects: SensorEffects,
     pub stw_scale: f64,
     pub sideslip_m: f64,
+    /// The sideslip that grows with the speed through water, as the sway
+    /// per yaw rate at the log's speed under way
+    /// ([`super::prepare::Prepared::under_way_speed_mps`]), m/s per rad/s.
+    pub speed_sideslip_m: f64,
     /// The profile's `[surge damping, yaw damping, thrust coefficients,
     /// mass]` over the profile's own (kinetic base only).
     pub profile_scales: [f64; 4],
@@ -293,6 +300,7 @@ impl Hypothesis {
             effects: SensorEffects::default(),
             stw_scale: 1.0,
             sideslip_m: 0.0,
+            speed_sideslip_m: 0.0,
             profile_scales: [1.0; 4],
             loss_from_s: 0.0,
             loss_tracked: false,
@@ -722,6 +730,15 @@ const MAX_MINIMUM_AWAY_SD: f64 = 3.0;
 const NEWTON_STEPS: usize = 3;
 
 impl Fitted {
+    /// Whether, once this is named, `cause` is no longer a candidate: it is
+    /// this cause or its companion, or another shape of the same effect
+    /// ([`Cause::excludes`]).
+    fn takes_the_place_of(&self, cause: Cause) -> bool {
+        cause == self.cause
+            || self.cause.excludes(cause)
+            || self.companion.as_ref().is_some_and(|k| k.cause == cause)
+    }
+
     /// Why its size does not clear the bars (at the edge of its search, too
     /// few standard deviations, below the practical size), if it does not.
     fn size_bar_missed(&self, acc: &Acceptance) -> Option<String> {
@@ -1669,7 +1686,12 @@ fn refit_jointly(
         let mut tried: Vec<Cause> = candidates
             .iter()
             .copied()
-            .filter(|c| findings.iter().all(|f| f.cause != *c))
+            .filter(|c| {
+                findings
+                    .iter()
+                    .enumerate()
+                    .all(|(j, f)| f.cause != *c && (j == i || !c.excludes(f.cause)))
+            })
             .collect();
         tried.push(old);
         let (own, others): (Vec<_>, Vec<_>) = score_round(ctx, &base, &tried)
@@ -2235,6 +2257,13 @@ fn size_tracked_loss(
     onset_s
 }
 
+/// The evidence lines the final model adds to its findings: a loss's
+/// step, a drift's look-alike latency.
+fn annotate(prep: &Prepared, model: &Accepted, findings: &mut [Finding]) {
+    note_training_step(model, findings);
+    note_latency_alike(prep, findings);
+}
+
 /// Says so where a named loss is a step fitted on the training part.
 fn note_training_step(model: &Accepted, findings: &mut [Finding]) {
     if model.hypothesis.loss_tracked || model.hypothesis.loss_from_s <= 0.0 {
@@ -2246,6 +2275,38 @@ fn note_training_step(model: &Accepted, findings: &mut [Finding]) {
             "it starts late: a step, its size and onset fitted as one on the training part"
                 .to_string(),
         );
+    }
+}
+
+/// Says, on a sideslip that drifts outward, which GNSS latency would bend
+/// the course in the turns as much: at a steady speed `u` the course of a
+/// hull drifting `v = k r` leaves its heading by `k r / u`, and a fix
+/// `L` old lags it by `L r`, so the two are one where `L = -k / u`
+/// (docs/model.md section 8). Positions, heading and a yaw rate tell them
+/// apart where the speed changes (the [`Cause::Sideslip`]'s angle falls
+/// with speed, a latency's does not) and hardly at all for the
+/// [`Cause::SideslipWithSpeed`], whose angle does not either; propeller
+/// speeds, whose model has the hull's sway, do.
+fn note_latency_alike(prep: &Prepared, findings: &mut [Finding]) {
+    for f in findings.iter_mut() {
+        if !matches!(f.cause, Cause::Sideslip | Cause::SideslipWithSpeed) {
+            continue;
+        }
+        let Some(&(_, lateral, _)) = f.parameters.first() else {
+            continue;
+        };
+        let latency_s = -lateral / prep.under_way_speed_mps;
+        let told_apart = if f.cause == Cause::Sideslip {
+            "only where the speed changes"
+        } else {
+            "hardly at all (this drift's angle, as a latency's, does not change with the speed)"
+        };
+        if latency_s > 0.0 {
+            f.evidence.push(format!(
+                "at the log's speed under way ({:.2} m/s) a GNSS latency of {latency_s:.2} s bends the course as this drift does: without propeller data the two are told apart {told_apart}",
+                prep.under_way_speed_mps
+            ));
+        }
     }
 }
 
@@ -2338,7 +2399,7 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
             refresh_state_findings(&mut findings[..earlier], states, acc);
             last_states = Some(*states);
         }
-        remaining.retain(|c| *c != f.cause && f.companion.as_ref().is_none_or(|k| k.cause != *c));
+        remaining.retain(|c| !f.takes_the_place_of(*c));
         accepted = f.hypothesis;
         current_out = out;
     }
@@ -2372,7 +2433,7 @@ pub fn diagnose(prep: &Prepared, config: &DiagnoseConfig) -> Diagnosis {
     refine_sizes_under_fitted_noise(&ctx, &mut model, &mut findings, &mut rejected);
     name_shared_parts(&ctx, &mut model, &mut findings);
     let tracked_onset_s = find_loss_after_training(&ctx, &mut model, &mut findings);
-    note_training_step(&model, &mut findings);
+    annotate(prep, &model, &mut findings);
     judge_each_against_the_rest(&ctx, &model, &mut findings);
     // A cause rejected in one round, or tried alone and with a companion,
     // can be named in the end (in a finding's place, or as a companion):

@@ -118,7 +118,7 @@ pub use identify::{
     identify,
 };
 pub use monitor::{BIAS_BATCHES, LiveMonitor, MonitorConfig, Trigger};
-pub use prepare::{DiagEvent, Prepared, prepare};
+pub use prepare::{DiagEvent, Prepared, UNDER_WAY_MPS, prepare};
 pub use residuals::{
     COMPONENT_COUNT, COMPONENTS, InnovationRecord, ResidualSummary, SIGNATURES,
     SignatureCorrelation,

@@ -316,6 +316,7 @@ pub(super) fn water_pass(prep: &Prepared, hyp: &Hypothesis, opts: PassOptions<'_
             .with_antenna_from(c.twin.kinetic.params.antenna_m),
         stw_scale: hyp.stw_scale,
         sideslip_m: hyp.sideslip_m,
+        sideslip_per_speed_s: hyp.speed_sideslip_m / prep.under_way_speed_mps,
         current: hyp.current,
         process_noise: c.water_process_noise,
         measurement_sigma: c.water_measurement_sigma,

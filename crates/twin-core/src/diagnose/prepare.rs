@@ -68,7 +68,14 @@ pub struct Prepared {
     pub has_yaw_rate: bool,
     /// Fixes dropped: not finite, out of range, or not after the previous one.
     pub dropped: usize,
+    /// The mean speed over ground of the fixes at [`UNDER_WAY_MPS`] or
+    /// faster ([`UNDER_WAY_MPS`] where there are none), m/s: the speed at
+    /// which a sideslip that grows with speed is reported.
+    pub under_way_speed_mps: f64,
 }
+
+/// The speed over ground from which a vessel counts as under way, m/s.
+pub const UNDER_WAY_MPS: f64 = 0.3;
 
 /// The speed through water nearest a time, within half a second: a cursor
 /// over the time-ordered speeds.
@@ -170,6 +177,16 @@ pub fn prepare(events: &[DiagEvent]) -> Option<Prepared> {
         return None;
     }
     let most = |k: usize| k * 2 > n;
+    let under_way: Vec<f64> = steps
+        .iter()
+        .filter_map(|s| s.fix.sog_mps)
+        .filter(|v| *v >= UNDER_WAY_MPS)
+        .collect();
+    let under_way_speed_mps = if under_way.is_empty() {
+        UNDER_WAY_MPS
+    } else {
+        under_way.iter().sum::<f64>() / under_way.len() as f64
+    };
     Some(Prepared {
         frame,
         has_position,
@@ -184,5 +201,6 @@ pub fn prepare(events: &[DiagEvent]) -> Option<Prepared> {
         ),
         steps,
         dropped,
+        under_way_speed_mps,
     })
 }

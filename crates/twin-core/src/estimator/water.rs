@@ -22,6 +22,9 @@ pub struct WaterOptions {
     pub stw_scale: f64,
     /// Sideways speed of the reference point per yaw rate, m/s per rad/s.
     pub sideslip_m: f64,
+    /// Sideways speed of the reference point per yaw rate and speed
+    /// through water, s ([`WaterKinematic::sideslip_per_speed_s`]).
+    pub sideslip_per_speed_s: f64,
     /// The water current `[north, east]`, m/s.
     pub current: Term<2>,
     /// Process noise density of the 7 states (per second).
@@ -81,6 +84,7 @@ impl WaterBase {
             effects: options.effects,
             stw_scale: options.stw_scale,
             sideslip_m: options.sideslip_m,
+            sideslip_per_speed_s: options.sideslip_per_speed_s,
         };
         Ok(Self {
             filter: Aekf::new(model, config)?,
@@ -225,6 +229,7 @@ mod tests {
             },
             stw_scale: 1.0,
             sideslip_m: 0.0,
+            sideslip_per_speed_s: 0.0,
             current: Term::Free,
             process_noise: [1e-4, 1e-4, 1e-6, 1e-2, 1e-4, 1e-6, 1e-6],
             measurement_sigma: [0.5, 0.1, 0.05, 1f64.to_radians(), 0.1, 0.0087],
@@ -320,6 +325,7 @@ mod tests {
             effects: SensorEffects::default(),
             stw_scale: 1.0,
             sideslip_m: 0.0,
+            sideslip_per_speed_s: 0.0,
             current: Term::Free,
             process_noise: [1e-4, 1e-4, 1e-6, 1e-2, 1e-4, 1e-6, 1e-6],
             measurement_sigma: [0.5, 0.1, 0.05, 1f64.to_radians(), 0.1, 0.0087],

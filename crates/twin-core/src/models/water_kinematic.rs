@@ -16,8 +16,14 @@
 //!
 //! ```text
 //! north' = u cos(psi) - v sin(psi) + c_n,  east' = u sin(psi) + v cos(psi) + c_e,
-//! psi' = r,  u' = r' = c' = 0 (+ noise),   v = k r (sideslip, 0 nominally)
+//! psi' = r,  u' = r' = c' = 0 (+ noise),   v = (k + k_u u) r (sideslip, 0 nominally)
 //! ```
+//! The sideslip has two shapes: `k` a sway per yaw rate at any speed (a
+//! hull whose hydrodynamic forces grow with speed as its centripetal force
+//! does, so that its drift in a turn of a given rate does not), and `k_u`
+//! a drift angle per yaw rate (`v / u = k_u r`: a hull whose damping does
+//! not grow with speed, as the Otter's linear damping, drifts in
+//! proportion to the centripetal force `u r`).
 //! integrated over a step with the heading at the step's midpoint.
 
 use nalgebra::{SMatrix, SVector};
@@ -78,6 +84,20 @@ pub struct WaterKinematic {
     /// in a turn a hull slides (its course through the water leaves its
     /// heading in proportion to the turn rate). 0 = none.
     pub sideslip_m: f64,
+    /// Sideways speed of the reference point per yaw rate and speed
+    /// through water, s (a drift angle per yaw rate: the sway is this times
+    /// `u r`). 0 = none.
+    pub sideslip_per_speed_s: f64,
+}
+
+impl WaterKinematic {
+    /// The sway of state `x` and its derivatives in the speed through
+    /// water and the yaw rate, `(v, dv/du, dv/dr)`.
+    fn sway(&self, x: &SVector<f64, 7>) -> (f64, f64, f64) {
+        let (u, r) = (x[idx::U], x[idx::R]);
+        let per_r = self.sideslip_m + self.sideslip_per_speed_s * u;
+        (per_r * r, self.sideslip_per_speed_s * r, per_r)
+    }
 }
 
 impl Default for WaterKinematic {
@@ -86,6 +106,7 @@ impl Default for WaterKinematic {
             effects: SensorEffects::default(),
             stw_scale: 1.0,
             sideslip_m: 0.0,
+            sideslip_per_speed_s: 0.0,
         }
     }
 }
@@ -101,7 +122,7 @@ impl Model<7, MEASUREMENTS, 0> for WaterKinematic {
         dt_s: f64,
     ) -> Transition<7, 0> {
         let (psi, u, r) = (x[idx::PSI], x[idx::U], x[idx::R]);
-        let v = self.sideslip_m * r;
+        let (v, dv_du, dv_dr) = self.sway(x);
         let mid = psi + 0.5 * r * dt_s;
         let (s, c) = trig::sin_cos(mid);
         let mut next = *x;
@@ -109,18 +130,17 @@ impl Model<7, MEASUREMENTS, 0> for WaterKinematic {
         next[idx::EAST] += dt_s * (u * s + v * c + x[idx::CURRENT_EAST]);
         next[idx::PSI] = wrap_pi(psi + r * dt_s);
         // Derivatives through the midpoint heading (d mid / d psi = 1,
-        // d mid / d r = dt/2) and the sideslip (d v / d r = sideslip).
+        // d mid / d r = dt/2) and the sideslip's sway.
         let dn_dmid = -u * s - v * c;
         let de_dmid = u * c - v * s;
-        let k = self.sideslip_m;
         let mut f = SMatrix::<f64, 7, 7>::identity();
         f[(idx::NORTH, idx::PSI)] = dt_s * dn_dmid;
-        f[(idx::NORTH, idx::U)] = dt_s * c;
-        f[(idx::NORTH, idx::R)] = dt_s * (dn_dmid * 0.5 * dt_s - k * s);
+        f[(idx::NORTH, idx::U)] = dt_s * (c - dv_du * s);
+        f[(idx::NORTH, idx::R)] = dt_s * (dn_dmid * 0.5 * dt_s - dv_dr * s);
         f[(idx::NORTH, idx::CURRENT_NORTH)] = dt_s;
         f[(idx::EAST, idx::PSI)] = dt_s * de_dmid;
-        f[(idx::EAST, idx::U)] = dt_s * s;
-        f[(idx::EAST, idx::R)] = dt_s * (de_dmid * 0.5 * dt_s + k * c);
+        f[(idx::EAST, idx::U)] = dt_s * (s + dv_du * c);
+        f[(idx::EAST, idx::R)] = dt_s * (de_dmid * 0.5 * dt_s + dv_dr * c);
         f[(idx::EAST, idx::CURRENT_EAST)] = dt_s;
         f[(idx::PSI, idx::R)] = dt_s;
         Transition {
@@ -131,14 +151,14 @@ impl Model<7, MEASUREMENTS, 0> for WaterKinematic {
     }
 
     fn observe(&self, x: &SVector<f64, 7>) -> Observation<7, MEASUREMENTS> {
-        // The sideslip's sway, v = k r, is the yaw rate's.
-        let k = self.sideslip_m;
+        // The sideslip's sway, v = (k + k_u u) r.
+        let (sway_mps, dv_du, dv_dr) = self.sway(x);
         let motion = BodyMotion {
             north_m: x[idx::NORTH],
             east_m: x[idx::EAST],
             heading_rad: x[idx::PSI],
             surge_mps: x[idx::U],
-            sway_mps: k * x[idx::R],
+            sway_mps,
             yaw_rate_radps: x[idx::R],
             current_north_mps: x[idx::CURRENT_NORTH],
             current_east_mps: x[idx::CURRENT_EAST],
@@ -149,8 +169,8 @@ impl Model<7, MEASUREMENTS, 0> for WaterKinematic {
             jacobian[(row, idx::NORTH)] = dm[body::NORTH];
             jacobian[(row, idx::EAST)] = dm[body::EAST];
             jacobian[(row, idx::PSI)] = dm[body::HEADING];
-            jacobian[(row, idx::U)] = dm[body::SURGE];
-            jacobian[(row, idx::R)] = dm[body::YAW_RATE] + k * dm[body::SWAY];
+            jacobian[(row, idx::U)] = dm[body::SURGE] + dv_du * dm[body::SWAY];
+            jacobian[(row, idx::R)] = dm[body::YAW_RATE] + dv_dr * dm[body::SWAY];
             jacobian[(row, idx::CURRENT_NORTH)] = dm[body::CURRENT_NORTH];
             jacobian[(row, idx::CURRENT_EAST)] = dm[body::CURRENT_EAST];
         }
@@ -196,8 +216,8 @@ impl Model<7, MEASUREMENTS, 0> for WaterKinematic {
 mod tests {
     use super::*;
 
-    /// `H` agrees with central differences of the measurement, with a
-    /// sideslip and every sensor effect on.
+    /// `H` agrees with central differences of the measurement, with both
+    /// sideslips and every sensor effect on.
     #[test]
     fn observation_jacobian_matches_finite_differences() {
         let m = WaterKinematic {
@@ -211,6 +231,7 @@ mod tests {
             },
             stw_scale: 0.9,
             sideslip_m: 1.5,
+            sideslip_per_speed_s: -0.4,
         };
         let x = SVector::<f64, 7>::from_column_slice(&[1.0, 2.0, 0.7, 2.0, 0.05, 0.2, -0.1]);
         let o = m.observe(&x);
@@ -231,10 +252,38 @@ mod tests {
         }
     }
 
+    /// A drift that grows with speed turns the course from the heading by
+    /// the same angle at every speed; one that does not, by less at a
+    /// higher speed.
+    #[test]
+    fn the_two_drifts_bend_the_course_as_their_shapes_say() {
+        let course_minus_heading = |m: &WaterKinematic, u: f64| {
+            let x = SVector::<f64, 7>::from_column_slice(&[0.0, 0.0, 0.3, u, 0.1, 0.0, 0.0]);
+            let o = m.observe(&x).predicted;
+            wrap_pi(o[meas::COG] - o[meas::HEADING])
+        };
+        // At 1 and 2 m/s, a drift that grows with speed and one that does not.
+        let at_two_speeds =
+            |m: WaterKinematic| [1.0, 2.0].map(|u| course_minus_heading(&m, u) - (-0.04f64).atan());
+        let [slow, fast] = at_two_speeds(WaterKinematic {
+            sideslip_per_speed_s: -0.4,
+            ..WaterKinematic::default()
+        });
+        assert!(slow.abs() < 1e-12 && fast.abs() < 1e-12, "{slow} {fast}");
+        let [slow, fast] = at_two_speeds(WaterKinematic {
+            sideslip_m: -0.4,
+            ..WaterKinematic::default()
+        });
+        let half_the_angle = (-0.02f64).atan() - (-0.04f64).atan();
+        assert!(slow.abs() < 1e-12, "{slow}");
+        assert!((fast - half_the_angle).abs() < 1e-12, "{fast}");
+    }
+
     #[test]
     fn jacobian_matches_finite_differences_and_current_moves_the_track() {
         let m = WaterKinematic {
             sideslip_m: 1.5,
+            sideslip_per_speed_s: -0.4,
             ..WaterKinematic::default()
         };
         let x = SVector::<f64, 7>::from_column_slice(&[1.0, 2.0, 0.7, 2.0, 0.05, 0.2, -0.1]);
