@@ -18,7 +18,9 @@
 //!    `catalogue`): the water current (two states), a loss per propeller
 //!    (where propeller data exist), a heading-sensor offset, a scale error
 //!    of the reported SOG or of the speed through water, GNSS latency, the
-//!    GNSS antenna's lever arm, a sideslip in turns (kinematic base), a
+//!    GNSS antenna's lever arm, a sideslip in turns (kinematic base; of
+//!    two shapes, never named together: a sway per yaw rate, or one that
+//!    also grows with the speed through water), a
 //!    scale error of the rate sensor's yaw rate, and the vessel's own
 //!    dynamics on the kinetic base: its surge damping, yaw damping and mass
 //!    over the profile's. Each is fitted on the first part
